@@ -1,0 +1,1 @@
+//! Generalized 3D chain-mail guidewire (work in progress).

@@ -1,0 +1,42 @@
+//! # surgbench-core: the contract every model implements
+//!
+//! A model crate implements [`ModelFactory`] (what it can do, how to build it)
+//! and [`Model`] (step and observe). The harness builds a [`Scene`] from a
+//! scenario, asks each registered factory to [`ModelFactory::check`] it, builds
+//! the model at a [`Fidelity`], steps it with [`DeviceCommand`]s from the
+//! scene's [`ControlTimeline`] and scores its [`Observation`]s.
+//!
+//! Units are SI throughout: metres, kilograms, seconds, newtons, pascals,
+//! radians.
+//!
+//! ```
+//! use surgbench_core::{Capability, Scene};
+//! let scene = Scene::empty("demo");
+//! assert!(scene.required_capabilities().is_empty());
+//! assert!(!Capability::Rod.describe().is_empty());
+//! ```
+
+pub mod error;
+pub mod fidelity;
+pub mod frames;
+pub mod model;
+pub mod observation;
+pub mod scene;
+pub mod sdf;
+
+pub use error::{BuildError, SimError, Unsupported};
+pub use fidelity::{Fidelity, FidelityKey};
+pub use model::{Capability, EnergyProbe, Family, Model, ModelFactory, StepStats};
+pub use observation::{ContactObs, EnergyObs, Observation, RodObs, TissueObs};
+pub use scene::{
+    Body, ContactParams, ControlKey, ControlTimeline, DeviceCommand, Environment, RodBody,
+    RodSection, Scene, Settle, SolidMaterial, TetMesh, TissueBody,
+};
+pub use sdf::Sdf;
+
+/// 3-vector of `f64` (SI units).
+pub type Vec3 = nalgebra::Vector3<f64>;
+/// Rotation matrix / material frame (columns are the frame's axes).
+pub type Mat3 = nalgebra::Matrix3<f64>;
+/// Rigid transform.
+pub type Iso3 = nalgebra::Isometry3<f64>;

@@ -1,0 +1,490 @@
+//! Scene description: everything a run needs and nothing more.
+//!
+//! Conventions every rod scene shares: the base is clamped at the origin with
+//! the rod along +x (the base pose's local x axis), gravity and transverse
+//! loads along -z. A scene without a vessel pays nothing for collision, a
+//! scene without flow has no blood: both are `Option`s.
+//!
+//! ```
+//! use surgbench_core::{Scene, RodBody, Vec3};
+//! let mut scene = Scene::empty("sag");
+//! scene.bodies.push(RodBody::uniform(0.2, 5e-4, 5e10, 0.3, 6450.0).into());
+//! scene.gravity = Vec3::new(0.0, 0.0, -9.81);
+//! scene.validate().unwrap();
+//! ```
+
+use crate::model::Capability;
+use crate::sdf::{Sdf, TransformedSdf};
+use crate::{Iso3, Vec3};
+use std::sync::Arc;
+
+/// One piece of a rod with uniform properties, from the previous section's
+/// end (or the base) to `until` (arclength from the base clamp, m).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RodSection {
+    /// Arclength where this section ends (m), measured from the clamp.
+    pub until: f64,
+    /// Cross-section radius (m); the section is a solid circle.
+    pub radius: f64,
+    /// Young's modulus (Pa).
+    pub youngs_modulus: f64,
+    /// Poisson ratio; shear modulus `G = E / (2 (1 + nu))`.
+    pub poisson_ratio: f64,
+    /// Density (kg/m^3).
+    pub density: f64,
+    /// Natural curvature in the material frame `(kappa_1, kappa_2)` (1/m):
+    /// a pre-shaped J or angled tip. Zero for a straight rod.
+    pub rest_curvature: [f64; 2],
+}
+
+impl RodSection {
+    /// Shear modulus `G = E / (2 (1 + nu))` (Pa).
+    pub fn shear_modulus(&self) -> f64 {
+        self.youngs_modulus / (2.0 * (1.0 + self.poisson_ratio))
+    }
+    /// Area `pi r^2` (m^2).
+    pub fn area(&self) -> f64 {
+        std::f64::consts::PI * self.radius * self.radius
+    }
+    /// Second moment of area of a solid circle `pi r^4 / 4` (m^4).
+    pub fn second_moment(&self) -> f64 {
+        std::f64::consts::PI * self.radius.powi(4) / 4.0
+    }
+    /// Polar moment `pi r^4 / 2` (m^4).
+    pub fn polar_moment(&self) -> f64 {
+        2.0 * self.second_moment()
+    }
+}
+
+/// A rod (guidewire, catheter, needle) clamped at its base.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RodBody {
+    /// Free length at the start of the run (m).
+    pub length: f64,
+    /// Sections from base to tip; the last one's `until` equals `length`.
+    pub sections: Vec<RodSection>,
+    /// Base clamp pose: position of the clamp; the rod leaves along its local
+    /// +x axis, the material frame starts as (local y, local z).
+    pub base: Iso3,
+    /// Dead force on the tip node (N, world frame).
+    pub tip_force: Vec3,
+    /// Dead torque on the tip (N m, world frame).
+    pub tip_torque: Vec3,
+}
+
+impl RodBody {
+    /// A straight rod with uniform properties, clamped at the origin along +x.
+    pub fn uniform(length: f64, radius: f64, youngs_modulus: f64, poisson_ratio: f64, density: f64) -> Self {
+        Self {
+            length,
+            sections: vec![RodSection {
+                until: length,
+                radius,
+                youngs_modulus,
+                poisson_ratio,
+                density,
+                rest_curvature: [0.0, 0.0],
+            }],
+            base: Iso3::identity(),
+            tip_force: Vec3::zeros(),
+            tip_torque: Vec3::zeros(),
+        }
+    }
+
+    /// The section at arclength `s` (m from the clamp); past the tip, the last.
+    pub fn section_at(&self, s: f64) -> &RodSection {
+        self.sections
+            .iter()
+            .find(|sec| s <= sec.until)
+            .unwrap_or_else(|| self.sections.last().expect("validated rod has a section"))
+    }
+
+    /// Check that the rod is physically meaningful.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.length > 0.0 && self.length.is_finite()) {
+            return Err(format!("rod length must be > 0 m, got {}", self.length));
+        }
+        if self.sections.is_empty() {
+            return Err("rod has no sections".into());
+        }
+        let mut prev = 0.0;
+        for (i, s) in self.sections.iter().enumerate() {
+            if !(s.until > prev) {
+                return Err(format!("rod section {i} ends at {} m, not after {prev} m", s.until));
+            }
+            prev = s.until;
+            if !(s.radius > 0.0 && s.radius.is_finite()) {
+                return Err(format!("radius must be > 0 m, got {}", s.radius));
+            }
+            if !(s.youngs_modulus > 0.0 && s.youngs_modulus.is_finite()) {
+                return Err(format!("youngs_modulus must be > 0 Pa, got {}", s.youngs_modulus));
+            }
+            if !(s.poisson_ratio > -1.0 && s.poisson_ratio < 0.5) {
+                return Err(format!("poisson_ratio must be in (-1, 0.5), got {}", s.poisson_ratio));
+            }
+            if !(s.density > 0.0 && s.density.is_finite()) {
+                return Err(format!("density must be > 0 kg/m^3, got {}", s.density));
+            }
+            if !s.rest_curvature.iter().all(|k| k.is_finite()) {
+                return Err("rest_curvature must be finite".into());
+            }
+        }
+        if (prev - self.length).abs() > 1e-12 * self.length {
+            return Err(format!("last rod section ends at {prev} m but the rod is {} m long", self.length));
+        }
+        if !(self.tip_force.iter().all(|x| x.is_finite()) && self.tip_torque.iter().all(|x| x.is_finite())) {
+            return Err("tip loads must be finite".into());
+        }
+        Ok(())
+    }
+}
+
+/// Isotropic solid material (SI units).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolidMaterial {
+    /// Young's modulus (Pa).
+    pub youngs_modulus: f64,
+    /// Poisson ratio (must be < 0.5).
+    pub poisson_ratio: f64,
+    /// Density (kg/m^3).
+    pub density: f64,
+}
+
+/// Linear tetrahedral mesh: node positions (m) and 4-node elements.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct TetMesh {
+    /// Node positions (m).
+    pub nodes: Vec<Vec3>,
+    /// Elements as node indices.
+    pub tets: Vec<[usize; 4]>,
+}
+
+impl TetMesh {
+    /// Check indices and that no element is degenerate.
+    pub fn validate(&self) -> Result<(), String> {
+        for (e, t) in self.tets.iter().enumerate() {
+            for &i in t {
+                if i >= self.nodes.len() {
+                    return Err(format!("tet {e} refers to node {i} but the mesh has {} nodes", self.nodes.len()));
+                }
+            }
+            let [a, b, c, d] = t.map(|i| self.nodes[i]);
+            let vol = (b - a).cross(&(c - a)).dot(&(d - a)) / 6.0;
+            if !(vol.abs() > 0.0) {
+                return Err(format!("tet {e} is degenerate (volume {vol})"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A deformable solid (tissue, vessel wall, gel phantom).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TissueBody {
+    /// The mesh at rest (m).
+    pub mesh: TetMesh,
+    /// Material.
+    pub material: SolidMaterial,
+    /// Nodes held fixed.
+    pub fixed_nodes: Vec<usize>,
+    /// Nodes driven to a displacement (m) by the end of the control ramp;
+    /// the control timeline's `insertion` (0..1) scales it.
+    pub driven_nodes: Vec<(usize, Vec3)>,
+}
+
+/// A body in the scene.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum Body {
+    /// A 1D rod.
+    Rod(RodBody),
+    /// A 3D deformable solid.
+    Tissue(TissueBody),
+}
+
+impl From<RodBody> for Body {
+    fn from(r: RodBody) -> Self {
+        Body::Rod(r)
+    }
+}
+
+/// Contact and friction parameters shared by every model in a scene.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactParams {
+    /// Static friction coefficient.
+    pub friction_static: f64,
+    /// Dynamic (sliding) friction coefficient.
+    pub friction_dynamic: f64,
+    /// Contact margin `epsilon` (m): nodes are kept this far inside the wall.
+    pub margin: f64,
+}
+
+impl Default for ContactParams {
+    fn default() -> Self {
+        Self {
+            friction_static: 0.0,
+            friction_dynamic: 0.0,
+            margin: 0.0,
+        }
+    }
+}
+
+/// A blood-flow velocity field (m/s).
+pub trait FlowField: Send + Sync + std::fmt::Debug {
+    /// Flow velocity at `p` (m/s).
+    fn velocity(&self, p: &Vec3) -> Vec3;
+}
+
+/// Everything around the bodies.
+#[derive(Debug, Clone, Default)]
+pub struct Environment {
+    /// Vessel lumen as a signed distance (negative inside the lumen).
+    pub vessel: Option<Arc<dyn Sdf>>,
+    /// Blood flow; only scenes with blood have one.
+    pub flow: Option<Arc<dyn FlowField>>,
+    /// Contact and friction.
+    pub contact: ContactParams,
+}
+
+/// What the operator's hands do at one instant.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DeviceCommand {
+    /// Length advanced along the base tangent since the start (m).
+    pub insertion: f64,
+    /// Rotation of the base about its tangent since the start (rad).
+    pub rotation: f64,
+    /// Optional moving base pose (overrides the scene's base pose).
+    pub base_pose: Option<Iso3>,
+}
+
+impl Default for DeviceCommand {
+    fn default() -> Self {
+        Self {
+            insertion: 0.0,
+            rotation: 0.0,
+            base_pose: None,
+        }
+    }
+}
+
+/// One key of the control timeline.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ControlKey {
+    /// Time (s).
+    pub t: f64,
+    /// Insertion at `t` (m).
+    pub insertion: f64,
+    /// Base rotation at `t` (rad).
+    pub rotation: f64,
+}
+
+/// Piecewise-linear control timeline; before the first key and after the
+/// last, the nearest key's values hold.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ControlTimeline {
+    /// Keys in increasing time.
+    pub keys: Vec<ControlKey>,
+}
+
+impl ControlTimeline {
+    /// Hold a constant base rotation from `t = 0` (rad).
+    pub fn hold_rotation(rotation: f64) -> Self {
+        Self {
+            keys: vec![ControlKey {
+                t: 0.0,
+                insertion: 0.0,
+                rotation,
+            }],
+        }
+    }
+
+    /// The command at time `t` (s).
+    pub fn command_at(&self, t: f64) -> DeviceCommand {
+        let k = &self.keys;
+        let (ins, rot) = match k.len() {
+            0 => (0.0, 0.0),
+            _ if t <= k[0].t => (k[0].insertion, k[0].rotation),
+            _ if t >= k[k.len() - 1].t => (k[k.len() - 1].insertion, k[k.len() - 1].rotation),
+            _ => {
+                let i = k.partition_point(|key| key.t <= t) - 1;
+                let (a, b) = (k[i], k[i + 1]);
+                let w = (t - a.t) / (b.t - a.t);
+                (a.insertion + w * (b.insertion - a.insertion), a.rotation + w * (b.rotation - a.rotation))
+            }
+        };
+        DeviceCommand {
+            insertion: ins,
+            rotation: rot,
+            base_pose: None,
+        }
+    }
+
+    /// Whether the base ever rotates.
+    pub fn rotates(&self) -> bool {
+        self.keys.iter().any(|k| k.rotation != 0.0)
+    }
+
+    /// Whether the wire is ever inserted or retracted.
+    pub fn inserts(&self) -> bool {
+        self.keys.iter().any(|k| k.insertion != 0.0)
+    }
+}
+
+/// The scene asks for static equilibrium: stop when every node's speed is
+/// under `velocity_tol` (m/s) after `min_time` (s), or at `Scene::duration`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Settle {
+    /// Largest node speed at equilibrium (m/s).
+    pub velocity_tol: f64,
+    /// Do not stop before this time (s): loads and controls may still ramp.
+    pub min_time: f64,
+}
+
+/// A complete scene.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    /// Scenario id that built it.
+    pub name: String,
+    /// Bodies.
+    pub bodies: Vec<Body>,
+    /// Vessel, flow, contact.
+    pub environment: Environment,
+    /// Gravity (m/s^2, world frame).
+    pub gravity: Vec3,
+    /// Largest simulated time (s).
+    pub duration: f64,
+    /// What the operator does.
+    pub control: ControlTimeline,
+    /// Static scenes: run to equilibrium.
+    pub settle: Option<Settle>,
+}
+
+impl Scene {
+    /// A scene with no bodies, no gravity and one second of time.
+    pub fn empty(name: &str) -> Self {
+        Self {
+            name: name.to_string(),
+            bodies: Vec::new(),
+            environment: Environment::default(),
+            gravity: Vec3::zeros(),
+            duration: 1.0,
+            control: ControlTimeline::default(),
+            settle: None,
+        }
+    }
+
+    /// The rods of the scene.
+    pub fn rods(&self) -> impl Iterator<Item = &RodBody> {
+        self.bodies.iter().filter_map(|b| match b {
+            Body::Rod(r) => Some(r),
+            _ => None,
+        })
+    }
+
+    /// The tissues of the scene.
+    pub fn tissues(&self) -> impl Iterator<Item = &TissueBody> {
+        self.bodies.iter().filter_map(|b| match b {
+            Body::Tissue(t) => Some(t),
+            _ => None,
+        })
+    }
+
+    /// Capabilities a model needs to run this scene, sorted.
+    pub fn required_capabilities(&self) -> Vec<Capability> {
+        let mut c = Vec::new();
+        for b in &self.bodies {
+            match b {
+                Body::Rod(r) => {
+                    c.push(Capability::Rod);
+                    if r.sections.len() > 1 {
+                        c.push(Capability::VaryingProperties);
+                    }
+                    if r.sections.iter().any(|s| s.rest_curvature != [0.0, 0.0]) {
+                        c.push(Capability::RestCurvature);
+                    }
+                    if r.tip_force != Vec3::zeros() {
+                        c.push(Capability::TipForce);
+                    }
+                    if r.tip_torque != Vec3::zeros() || self.control.rotates() {
+                        c.push(Capability::Twist);
+                    }
+                    if self.control.inserts() {
+                        c.push(Capability::Insertion);
+                    }
+                }
+                Body::Tissue(_) => c.push(Capability::Tissue),
+            }
+        }
+        if self.environment.vessel.is_some() {
+            c.push(Capability::VesselContact);
+            if self.environment.contact.friction_static > 0.0 || self.environment.contact.friction_dynamic > 0.0 {
+                c.push(Capability::Friction);
+            }
+        }
+        if self.environment.flow.is_some() {
+            c.push(Capability::Flow);
+        }
+        c.sort();
+        c.dedup();
+        c
+    }
+
+    /// Check every body and setting; the message names the problem.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.duration > 0.0 && self.duration.is_finite()) {
+            return Err(format!("duration must be > 0 s, got {}", self.duration));
+        }
+        if !self.gravity.iter().all(|g| g.is_finite()) {
+            return Err("gravity must be finite".into());
+        }
+        for b in &self.bodies {
+            match b {
+                Body::Rod(r) => r.validate()?,
+                Body::Tissue(t) => {
+                    t.mesh.validate()?;
+                    let m = &t.material;
+                    if !(m.youngs_modulus > 0.0) || !(m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5) || !(m.density > 0.0) {
+                        return Err(format!("bad tissue material {m:?}"));
+                    }
+                }
+            }
+        }
+        let c = &self.environment.contact;
+        if !(c.friction_static >= 0.0 && c.friction_dynamic >= 0.0 && c.friction_dynamic <= c.friction_static) {
+            return Err(format!("friction needs 0 <= dynamic <= static, got {c:?}"));
+        }
+        if !(c.margin >= 0.0) {
+            return Err(format!("contact margin must be >= 0 m, got {}", c.margin));
+        }
+        Ok(())
+    }
+
+    /// The same scene moved rigidly by `iso`: poses, loads, gravity, meshes
+    /// and the vessel. A model's answer must move with it (conformance).
+    pub fn transformed(&self, iso: &Iso3) -> Scene {
+        let mut s = self.clone();
+        let rot = iso.rotation;
+        s.gravity = rot * self.gravity;
+        for b in &mut s.bodies {
+            match b {
+                Body::Rod(r) => {
+                    r.base = iso * r.base;
+                    r.tip_force = rot * r.tip_force;
+                    r.tip_torque = rot * r.tip_torque;
+                }
+                Body::Tissue(t) => {
+                    for p in &mut t.mesh.nodes {
+                        *p = iso.transform_point(&(*p).into()).coords;
+                    }
+                    for (_, d) in &mut t.driven_nodes {
+                        *d = rot * *d;
+                    }
+                }
+            }
+        }
+        if let Some(v) = &self.environment.vessel {
+            s.environment.vessel = Some(Arc::new(TransformedSdf::new(v.clone(), *iso)));
+        }
+        s
+    }
+}

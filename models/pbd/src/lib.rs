@@ -1,0 +1,1 @@
+//! Position-based dynamics: Cosserat-PBD rod and tetrahedral tissue (work in progress).

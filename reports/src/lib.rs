@@ -1,0 +1,1 @@
+//! Report rendering (work in progress).

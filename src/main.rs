@@ -1,0 +1,2 @@
+//! surgbench command-line interface.
+fn main() {}
