@@ -16,6 +16,7 @@
 //! assert!(!Capability::Rod.describe().is_empty());
 //! ```
 
+pub mod contact;
 pub mod error;
 pub mod fidelity;
 pub mod frames;

@@ -1,0 +1,1 @@
+//! Contact and Coulomb friction response shared by rod models (work in progress).
