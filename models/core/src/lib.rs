@@ -20,6 +20,7 @@ pub mod contact;
 pub mod error;
 pub mod fidelity;
 pub mod frames;
+pub mod mesh;
 pub mod model;
 pub mod observation;
 pub mod scene;

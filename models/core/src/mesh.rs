@@ -1,0 +1,1 @@
+//! Tetrahedral meshing, mesh quality and mesh file readers (work in progress).

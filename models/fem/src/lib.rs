@@ -1,0 +1,1 @@
+//! Corotational FEM tissue (work in progress).
