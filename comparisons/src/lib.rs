@@ -1,1 +1,2 @@
 //! Harness (work in progress).
+pub mod elastica;
