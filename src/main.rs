@@ -1,2 +1,311 @@
-//! surgbench command-line interface.
-fn main() {}
+//! `surgbench`: run the standard comparison, one run, or re-render a report.
+//!
+//! Exit codes: 0 success, 1 a run or write failed at runtime, 2 bad usage
+//! (unknown scenario/model/parameter, out-of-range value, malformed file);
+//! on exit 2 nothing is written.
+
+use clap::{Parser, Subcommand};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use surgbench_comparisons::batch::{self, BatchError, BatchOptions};
+use surgbench_comparisons::comparison::Comparison;
+use surgbench_comparisons::runner::{self, RunOptions};
+use surgbench_comparisons::scenario::{Params, parse_overrides};
+use surgbench_comparisons::{UsageError, registry};
+use surgbench_core::Fidelity;
+
+#[derive(Parser)]
+#[command(
+    name = "surgbench",
+    version,
+    about = "Validate and benchmark surgical-simulator solvers side by side on identical scenes",
+    long_about = "surgbench runs interchangeable models (rods, tissue) on identical scenarios, scores them \
+against analytic, FEM and phantom references, and writes comparison reports (CSV, plots, HTML).\n\n\
+Start with `surgbench list`, then `surgbench run --quick` (writes reports/out/latest/)."
+)]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// List scenarios (with parameters and defaults), models (with capabilities) and comparisons.
+    List,
+    /// Run a comparison (default: comparisons/standard.toml) and write a report.
+    Run {
+        /// Comparison name (comparisons/NAME.toml) or path to a .toml file.
+        #[arg(default_value = "standard")]
+        comparison: String,
+        /// Only these models (comma-separated ids).
+        #[arg(long, value_delimiter = ',')]
+        models: Option<Vec<String>>,
+        /// Smaller sweeps, one repeat: a report in a minute or two.
+        #[arg(long)]
+        quick: bool,
+        /// Report folder (default: reports/out/latest).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Threads per run (RAYON_NUM_THREADS); runs themselves go one at a time.
+        #[arg(long, default_value_t = 1)]
+        threads: usize,
+        /// Repeats per run (overrides the comparison; timings pooled).
+        #[arg(long)]
+        repeats: Option<usize>,
+        /// Wall-clock limit per run in seconds (overrides the comparison).
+        #[arg(long)]
+        timeout: Option<f64>,
+        /// No progress bar.
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Run one scenario with one model at one fidelity; writes summary.json,
+    /// observables.csv and final_state.csv into --out.
+    RunOne {
+        /// Scenario id (see `surgbench list`).
+        #[arg(long)]
+        scenario: String,
+        /// Model id (see `surgbench list`).
+        #[arg(long)]
+        model: String,
+        /// Scenario parameter override, NAME=VALUE in SI units (repeatable).
+        #[arg(long = "param", value_name = "NAME=VALUE")]
+        params: Vec<String>,
+        /// Fidelity knob, KEY=VALUE: segments, mesh_level, dt, iterations or a model extra (repeatable).
+        #[arg(long = "fidelity", value_name = "KEY=VALUE")]
+        fidelity: Vec<String>,
+        /// Output folder (replaced atomically).
+        #[arg(long)]
+        out: PathBuf,
+        /// Repeats (timings pooled; results must be bit-identical).
+        #[arg(long, default_value_t = 1)]
+        repeats: usize,
+        /// Print nothing on success.
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Re-render plots and pages of a report folder from its results.csv.
+    Report {
+        /// Report folder holding results.csv.
+        dir: PathBuf,
+    },
+}
+
+/// Failure kinds mapped to exit codes.
+enum Failure {
+    Usage(String),
+    Runtime(String),
+}
+
+impl From<UsageError> for Failure {
+    fn from(u: UsageError) -> Self {
+        Failure::Usage(u.0)
+    }
+}
+
+/// The folder holding `comparisons/`: the current directory if it has one,
+/// else the source tree this binary was built from.
+fn project_root() -> PathBuf {
+    if Path::new("comparisons").is_dir() {
+        PathBuf::from(".")
+    } else {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+    }
+}
+
+fn find_comparison(name: &str) -> Result<PathBuf, UsageError> {
+    let p = Path::new(name);
+    if p.extension().is_some_and(|e| e == "toml") || p.components().count() > 1 {
+        return if p.is_file() {
+            Ok(p.to_path_buf())
+        } else {
+            Err(UsageError(format!("comparison file {} not found", p.display())))
+        };
+    }
+    let f = project_root().join("comparisons").join(format!("{name}.toml"));
+    if f.is_file() {
+        Ok(f)
+    } else {
+        Err(UsageError(format!("unknown comparison `{name}` (no {})", f.display())))
+    }
+}
+
+fn list() {
+    println!("SCENARIOS");
+    for s in registry::scenarios() {
+        println!("  {:<22} [{}] {}", s.id(), s.family().name(), s.description());
+        println!("  {:<22} reference: {}", "", s.reference());
+        for p in s.params() {
+            println!("  {:<24}{:<16} = {:<10} {:<7} {}", "", p.name, p.default, p.unit, p.doc);
+        }
+    }
+    println!("\nMODELS");
+    for r in registry::models() {
+        let f = r.factory;
+        let caps: Vec<_> = f.capabilities().iter().map(|c| c.name()).collect();
+        println!("  {:<12} [{}] {}", f.id(), f.family().name(), f.description());
+        println!("  {:<12} capabilities: {}", "", caps.join(", "));
+        for k in f.fidelity_keys() {
+            println!("  {:<14}fidelity {:<14} {}", "", k.name, k.doc);
+        }
+    }
+    println!("\nCOMPARISONS");
+    if let Ok(rd) = std::fs::read_dir(project_root().join("comparisons")) {
+        let mut names: Vec<_> = rd
+            .filter_map(|e| e.ok())
+            .map(|e| e.path())
+            .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+            .collect();
+        names.sort();
+        for p in names {
+            let desc = Comparison::load(&p).map(|c| c.description).unwrap_or_else(|e| format!("(unreadable: {e})"));
+            println!("  {:<22} {}", p.file_stem().unwrap_or_default().to_string_lossy(), desc);
+        }
+    }
+}
+
+fn run_one(
+    scenario: &str,
+    model: &str,
+    params: &[String],
+    fidelity: &[String],
+    out: &Path,
+    repeats: usize,
+    quiet: bool,
+) -> Result<(), Failure> {
+    let sc = registry::scenario(scenario)?;
+    let factory = registry::model(model)?;
+    let overrides = parse_overrides(params)?;
+    let params = Params::resolve(sc.id(), sc.params(), &overrides)?;
+    let fid = Fidelity::parse_pairs(fidelity).map_err(|e| Failure::Usage(e.0))?;
+    fid.check_extras(factory.fidelity_keys()).map_err(|e| Failure::Usage(format!("model `{model}`: {}", e.0)))?;
+    if repeats == 0 {
+        return Err(Failure::Usage("--repeats must be >= 1".into()));
+    }
+    let run = sc.instantiate(&params)?;
+    let opts = RunOptions {
+        repeats,
+        ..Default::default()
+    };
+    let summary = runner::run_single(sc, &params, run.as_ref(), factory, &fid, &opts)?;
+    let tmp = batch::temp_sibling(out).map_err(|e| Failure::Runtime(format!("cannot create {}: {e}", out.display())))?;
+    runner::write_run_files(&tmp, &summary).map_err(|e| Failure::Runtime(format!("cannot write run files: {e}")))?;
+    batch::replace_dir(&tmp, out).map_err(|e| Failure::Runtime(format!("cannot move run into {}: {e}", out.display())))?;
+    if !quiet {
+        println!(
+            "{} / {} [{}]: {}{}",
+            summary.scenario,
+            summary.model,
+            summary.fidelity_string,
+            summary.status,
+            if summary.reason.is_empty() { String::new() } else { format!(" ({})", summary.reason) }
+        );
+        if let Some(ms) = summary.ms_per_step_median {
+            println!("  {} steps, {:.4} s simulated, {ms:.4} ms/step median, end: {}", summary.steps, summary.sim_time_s, summary.end);
+        }
+        for (k, v) in &summary.errors {
+            println!("  {k:<34} {v:.6e}");
+        }
+        println!("  written to {}", out.display());
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let res: Result<(), Failure> = match cli.cmd {
+        Cmd::List => {
+            list();
+            Ok(())
+        }
+        Cmd::Run {
+            comparison,
+            models,
+            quick,
+            out,
+            threads,
+            repeats,
+            timeout,
+            quiet,
+        } => (|| {
+            if threads == 0 {
+                return Err(Failure::Usage("--threads must be >= 1".into()));
+            }
+            if repeats == Some(0) {
+                return Err(Failure::Usage("--repeats must be >= 1".into()));
+            }
+            if let Some(t) = timeout
+                && !(t > 0.0)
+            {
+                return Err(Failure::Usage(format!("--timeout must be > 0 s, got {t}")));
+            }
+            let path = find_comparison(&comparison)?;
+            let c = Comparison::load(&path)?;
+            let out = out.unwrap_or_else(|| project_root().join("reports/out/latest"));
+            let exe = std::env::current_exe().map_err(|e| Failure::Runtime(format!("cannot find own executable: {e}")))?;
+            let opts = BatchOptions {
+                quick,
+                models,
+                out: out.clone(),
+                threads,
+                repeats,
+                timeout_s: timeout,
+                quiet,
+                exe,
+                command: std::env::args().collect::<Vec<_>>().join(" "),
+            };
+            let rows = batch::run_comparison(&c, &opts).map_err(|e| match e {
+                BatchError::Usage(u) => Failure::Usage(u.0),
+                BatchError::Io(s) => Failure::Runtime(s),
+            })?;
+            if !quiet {
+                let count = |s: &str| rows.iter().filter(|r| r.status == s).count();
+                println!(
+                    "{} runs: {} ok, {} unstable, {} unsupported, {} failed, {} timeout",
+                    rows.len(),
+                    count("ok"),
+                    count("unstable"),
+                    count("unsupported"),
+                    count("failed"),
+                    count("timeout")
+                );
+                println!("report: {}", out.join("index.html").display());
+            }
+            Ok(())
+        })(),
+        Cmd::RunOne {
+            scenario,
+            model,
+            params,
+            fidelity,
+            out,
+            repeats,
+            quiet,
+        } => run_one(&scenario, &model, &params, &fidelity, &out, repeats, quiet),
+        Cmd::Report { dir } => (|| {
+            let csv = dir.join("results.csv");
+            if !csv.is_file() {
+                return Err(Failure::Usage(format!("{} has no results.csv", dir.display())));
+            }
+            let rows = surgbench_reports::read_results_csv(&csv).map_err(|e| Failure::Usage(e.to_string()))?;
+            let info: surgbench_reports::RunInfo = std::fs::read_to_string(dir.join("summary.json"))
+                .ok()
+                .and_then(|s| serde_json::from_str(&s).ok())
+                .unwrap_or_default();
+            let files = surgbench_reports::render(&dir, &rows, &info).map_err(|e| Failure::Runtime(e.to_string()))?;
+            println!("rendered {} files into {}", files.len(), dir.display());
+            Ok(())
+        })(),
+    };
+    match res {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(Failure::Usage(m)) => {
+            eprintln!("error: {m}");
+            ExitCode::from(2)
+        }
+        Err(Failure::Runtime(m)) => {
+            eprintln!("error: {m}");
+            ExitCode::from(1)
+        }
+    }
+}

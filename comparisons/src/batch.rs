@@ -1,0 +1,385 @@
+//! The batch runner: a comparison's jobs, each in its own child process
+//! with a wall-clock limit, so a model that panics, aborts or hangs is
+//! recorded as failed (with its message and time) and the comparison goes
+//! on. Results are written to a temporary folder and renamed into place at
+//! the end: a failed or interrupted run leaves earlier reports intact.
+
+use crate::comparison::{Comparison, Job};
+use crate::registry;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+use surgbench_reports::{ResultRow, RunInfo};
+
+/// How to run a comparison.
+#[derive(Debug, Clone)]
+pub struct BatchOptions {
+    /// Use the quick sweeps and one repeat.
+    pub quick: bool,
+    /// Restrict to these models.
+    pub models: Option<Vec<String>>,
+    /// Report folder (replaced atomically at the end).
+    pub out: PathBuf,
+    /// Threads per run (RAYON_NUM_THREADS of the child).
+    pub threads: usize,
+    /// Override the comparison's repeats.
+    pub repeats: Option<usize>,
+    /// Override the comparison's per-run wall-clock limit (s).
+    pub timeout_s: Option<f64>,
+    /// No progress bar.
+    pub quiet: bool,
+    /// The `surgbench` executable to spawn for each run.
+    pub exe: PathBuf,
+    /// The command line, for the record.
+    pub command: String,
+}
+
+/// Why a batch could not produce a report.
+#[derive(Debug)]
+pub enum BatchError {
+    /// Bad input: nothing was run or written.
+    Usage(crate::UsageError),
+    /// Writing the report failed; the previous report is intact.
+    Io(String),
+}
+
+impl std::fmt::Display for BatchError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            BatchError::Usage(u) => u.fmt(f),
+            BatchError::Io(s) => f.write_str(s),
+        }
+    }
+}
+
+impl From<crate::UsageError> for BatchError {
+    fn from(u: crate::UsageError) -> Self {
+        BatchError::Usage(u)
+    }
+}
+
+fn io(ctx: &str) -> impl Fn(std::io::Error) -> BatchError + '_ {
+    move |e| BatchError::Io(format!("{ctx}: {e}"))
+}
+
+/// File-name-safe form of a fidelity string.
+pub fn slug(s: &str) -> String {
+    if s.is_empty() {
+        return "default".into();
+    }
+    s.chars()
+        .map(|c| match c {
+            '=' => '-',
+            ';' => '_',
+            c if c.is_ascii_alphanumeric() || c == '.' || c == '-' || c == '_' => c,
+            _ => '~',
+        })
+        .collect()
+}
+
+fn base_row(c: &Comparison, job: &Job) -> ResultRow {
+    let sc = registry::scenario(&job.scenario).ok();
+    let f = registry::model(&job.model).ok();
+    ResultRow {
+        comparison: c.name.clone(),
+        scenario: job.scenario.clone(),
+        model: job.model.clone(),
+        family: f.map(|f| f.family().name().to_string()).unwrap_or_default(),
+        fidelity: job.fidelity.to_string(),
+        params: job.params.iter().map(|(k, v)| format!("{k}={v}")).collect::<Vec<_>>().join(";"),
+        primary_error: sc.map(|s| s.primary_error().to_string()).unwrap_or_default(),
+        ..Default::default()
+    }
+}
+
+fn num(v: &serde_json::Value, k: &str) -> Option<f64> {
+    v.get(k).and_then(|x| x.as_f64())
+}
+
+fn text(v: &serde_json::Value, k: &str) -> String {
+    v.get(k).and_then(|x| x.as_str()).unwrap_or_default().to_string()
+}
+
+/// Fill a row from a child's `summary.json`.
+fn row_from_summary(mut row: ResultRow, v: &serde_json::Value) -> ResultRow {
+    if let Some(f) = v.get("fidelity").and_then(|f| f.as_object()) {
+        let get = |k: &str| f.get(k).and_then(|x| x.as_f64());
+        row.segments = get("segments");
+        row.mesh_level = get("mesh_level");
+        row.dt = get("dt");
+        row.iterations = get("iterations");
+    }
+    let fs = text(v, "fidelity_string");
+    if !fs.is_empty() {
+        row.fidelity = fs;
+    }
+    row.status = text(v, "status");
+    row.reason = text(v, "reason");
+    row.end = text(v, "end");
+    row.steps = num(v, "steps");
+    row.sim_time_s = num(v, "sim_time_s");
+    row.ms_per_step_median = num(v, "ms_per_step_median");
+    row.ms_per_step_p95 = num(v, "ms_per_step_p95");
+    row.steps_per_s = num(v, "steps_per_s");
+    row.real_time_factor = num(v, "real_time_factor");
+    row.solver_iters_mean = num(v, "solver_iters_mean");
+    row.solver_iters_max = num(v, "solver_iters_max");
+    row.peak_rss_mb = num(v, "peak_rss_mb");
+    row.build_ms = num(v, "build_ms");
+    row.stable = v.get("stable").and_then(|x| x.as_bool());
+    row.watchdog = text(v, "watchdog");
+    row.watchdog_t = num(v, "watchdog_t");
+    if let Some(e) = v.get("errors").and_then(|x| x.as_object()) {
+        row.metrics = e.iter().filter_map(|(k, x)| x.as_f64().map(|x| (k.clone(), x))).collect();
+    }
+    row
+}
+
+/// Last meaningful lines of a child's stderr (the panic message).
+fn stderr_tail(path: &Path) -> String {
+    let s = std::fs::read_to_string(path).unwrap_or_default();
+    let lines: Vec<&str> = s
+        .lines()
+        .filter(|l| !l.trim().is_empty() && !l.starts_with("note:") && !l.starts_with("stack backtrace"))
+        .collect();
+    let tail = lines.iter().rev().take(2).rev().copied().collect::<Vec<_>>().join(" | ");
+    tail.chars().take(400).collect()
+}
+
+/// Run one job in a child process; returns its row.
+fn run_job(c: &Comparison, job: &Job, runs: &Path, opts: &BatchOptions, repeats: usize, timeout: f64) -> ResultRow {
+    let mut row = base_row(c, job);
+    if let Some(reason) = &job.unsupported {
+        row.status = "unsupported".into();
+        row.reason = reason.clone();
+        return row;
+    }
+    let rel = PathBuf::from("runs").join(&job.scenario).join(&job.model).join(slug(&job.fidelity.to_string()));
+    let dir = runs.parent().expect("runs has a parent").join(&rel);
+    if let Some(p) = dir.parent() {
+        let _ = std::fs::create_dir_all(p);
+    }
+    let err_path = dir.with_extension("stderr.txt");
+    let mut cmd = Command::new(&opts.exe);
+    cmd.arg("run-one")
+        .arg("--scenario")
+        .arg(&job.scenario)
+        .arg("--model")
+        .arg(&job.model)
+        .arg("--out")
+        .arg(&dir)
+        .arg("--repeats")
+        .arg(repeats.to_string())
+        .arg("--quiet");
+    for (k, v) in &job.params {
+        cmd.arg("--param").arg(format!("{k}={v}"));
+    }
+    for (k, v) in job.fidelity.pairs() {
+        cmd.arg("--fidelity").arg(format!("{k}={v}"));
+    }
+    cmd.env("RAYON_NUM_THREADS", opts.threads.to_string())
+        .stdin(Stdio::null())
+        .stdout(Stdio::null());
+    match std::fs::File::create(&err_path) {
+        Ok(f) => {
+            cmd.stderr(f);
+        }
+        Err(_) => {
+            cmd.stderr(Stdio::null());
+        }
+    }
+    let start = Instant::now();
+    let mut child = match cmd.spawn() {
+        Ok(c) => c,
+        Err(e) => {
+            row.status = "failed".into();
+            row.reason = format!("could not start {}: {e}", opts.exe.display());
+            return row;
+        }
+    };
+    let status = loop {
+        match child.try_wait() {
+            Ok(Some(s)) => break Some(s),
+            Ok(None) if start.elapsed().as_secs_f64() > timeout => {
+                let _ = child.kill();
+                let _ = child.wait();
+                break None;
+            }
+            Ok(None) => std::thread::sleep(Duration::from_millis(5)),
+            Err(_) => break None,
+        }
+    };
+    let elapsed = start.elapsed().as_secs_f64();
+    match status {
+        None => {
+            row.status = "timeout".into();
+            row.reason = format!("killed after {elapsed:.1} s wall-clock limit");
+        }
+        Some(s) if s.success() => match std::fs::read_to_string(dir.join("summary.json"))
+            .ok()
+            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        {
+            Some(v) => {
+                row = row_from_summary(row, &v);
+                row.run_dir = rel.to_string_lossy().into_owned();
+            }
+            None => {
+                row.status = "failed".into();
+                row.reason = "run finished but wrote no readable summary.json".into();
+            }
+        },
+        Some(s) => {
+            row.status = "failed".into();
+            let code = s.code().map(|c| format!("exit code {c}")).unwrap_or_else(|| "killed by a signal".into());
+            row.reason = format!("{code} after {elapsed:.2} s: {}", stderr_tail(&err_path));
+        }
+    }
+    if row.status == "ok" || row.status == "unstable" || row.status == "unsupported" {
+        let _ = std::fs::remove_file(&err_path);
+    }
+    row
+}
+
+/// Today's date and time (UTC) from the system clock, ISO 8601.
+pub fn utc_now() -> String {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs() as i64)
+        .unwrap_or(0);
+    let (days, rem) = (secs.div_euclid(86400), secs.rem_euclid(86400));
+    // Civil from days (Howard Hinnant's algorithm).
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36524 - doe / 146_096) / 365;
+    let y = yoe + era * 400;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = if m <= 2 { y + 1 } else { y };
+    format!("{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z", rem / 3600, (rem % 3600) / 60, rem % 60)
+}
+
+fn command_output(cmd: &str, args: &[&str]) -> Option<String> {
+    let o = Command::new(cmd).args(args).stderr(Stdio::null()).output().ok()?;
+    o.status.success().then(|| String::from_utf8_lossy(&o.stdout).trim().to_string())
+}
+
+/// Versions of the crates that matter, read from the workspace's Cargo.lock
+/// as it was when the harness was built.
+pub fn crate_versions() -> BTreeMap<String, String> {
+    const LOCK: &str = include_str!("../../Cargo.lock");
+    const WANT: &[&str] = &["nalgebra", "faer", "rapier3d", "parry3d", "plotters", "csv", "criterion", "rayon"];
+    let mut out = BTreeMap::new();
+    let mut name = "";
+    for line in LOCK.lines() {
+        if let Some(n) = line.strip_prefix("name = ") {
+            name = n.trim_matches('"');
+        } else if let Some(v) = line.strip_prefix("version = ")
+            && WANT.contains(&name)
+        {
+            out.insert(name.to_string(), v.trim_matches('"').to_string());
+        }
+    }
+    out.insert("surgbench".into(), env!("CARGO_PKG_VERSION").into());
+    out
+}
+
+/// Facts about this machine and build, for `summary.json`.
+pub fn run_info(comparison: &str, opts: &BatchOptions) -> RunInfo {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| s.lines().find(|l| l.starts_with("model name")).map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string()))
+        .unwrap_or_else(|| std::env::consts::ARCH.to_string());
+    RunInfo {
+        comparison: comparison.into(),
+        date: utc_now(),
+        commit: command_output("git", &["rev-parse", "--short=12", "HEAD"]).unwrap_or_else(|| "unknown".into()),
+        machine: format!("{cpu} ({} {})", std::env::consts::OS, std::env::consts::ARCH),
+        cores: std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
+        threads: opts.threads,
+        rustc: command_output("rustc", &["--version"]).unwrap_or_else(|| "unknown".into()),
+        crate_versions: crate_versions(),
+        command: opts.command.clone(),
+        quick: opts.quick,
+        wall_s: 0.0,
+    }
+}
+
+/// Move `tmp` into place at `out`, keeping `out` intact until the new one
+/// is complete.
+pub fn replace_dir(tmp: &Path, out: &Path) -> std::io::Result<()> {
+    if out.exists() {
+        let old = out.with_file_name(format!(
+            ".{}.old-{}",
+            out.file_name().and_then(|n| n.to_str()).unwrap_or("out"),
+            std::process::id()
+        ));
+        std::fs::rename(out, &old)?;
+        if let Err(e) = std::fs::rename(tmp, out) {
+            let _ = std::fs::rename(&old, out);
+            return Err(e);
+        }
+        let _ = std::fs::remove_dir_all(&old);
+        Ok(())
+    } else {
+        std::fs::rename(tmp, out)
+    }
+}
+
+/// A temporary sibling of `out` for building a replacement.
+pub fn temp_sibling(out: &Path) -> std::io::Result<PathBuf> {
+    let parent = out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    std::fs::create_dir_all(parent)?;
+    let tmp = parent.join(format!(
+        ".{}.tmp-{}",
+        out.file_name().and_then(|n| n.to_str()).unwrap_or("out"),
+        std::process::id()
+    ));
+    if tmp.exists() {
+        std::fs::remove_dir_all(&tmp)?;
+    }
+    std::fs::create_dir_all(&tmp)?;
+    Ok(tmp)
+}
+
+/// Run a comparison and write its report to `opts.out`. Returns the rows.
+pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultRow>, BatchError> {
+    let started = Instant::now();
+    let jobs = c.jobs(opts.quick, opts.models.as_deref())?;
+    if jobs.is_empty() {
+        return Err(crate::UsageError("the comparison selects no runs (no models match?)".into()).into());
+    }
+    let repeats = if opts.quick { 1 } else { opts.repeats.or(c.repeats).unwrap_or(1) };
+    let timeout = opts.timeout_s.or(c.timeout_s).unwrap_or(300.0);
+    let tmp = temp_sibling(&opts.out).map_err(io("cannot create the temporary report folder"))?;
+    let runs = tmp.join("runs");
+    std::fs::create_dir_all(&runs).map_err(io("cannot create runs/"))?;
+    let bar = if opts.quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        let b = indicatif::ProgressBar::new(jobs.len() as u64);
+        b.set_style(
+            indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} {msg}")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        b
+    };
+    let mut rows = Vec::with_capacity(jobs.len());
+    for job in &jobs {
+        bar.set_message(format!("{} / {} / {}", job.scenario, job.model, job.fidelity));
+        rows.push(run_job(c, job, &runs, opts, repeats, timeout));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let mut info = run_info(&c.name, opts);
+    info.wall_s = started.elapsed().as_secs_f64();
+    surgbench_reports::write_results_csv(&tmp.join("results.csv"), &rows).map_err(|e| BatchError::Io(e.to_string()))?;
+    let json = serde_json::to_string_pretty(&info).map_err(|e| BatchError::Io(e.to_string()))?;
+    std::fs::write(tmp.join("summary.json"), json + "\n").map_err(io("cannot write summary.json"))?;
+    surgbench_reports::render(&tmp, &rows, &info).map_err(|e| BatchError::Io(e.to_string()))?;
+    replace_dir(&tmp, &opts.out).map_err(io("cannot move the report into place"))?;
+    Ok(rows)
+}

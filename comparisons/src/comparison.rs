@@ -1,0 +1,262 @@
+//! Comparisons as data: `comparisons/*.toml` name scenarios, models,
+//! fidelity sweeps and parameter overrides.
+//!
+//! ```toml
+//! name = "standard"
+//! description = "rod statics"
+//! models = "all"            # or ["der", "chainmail"]
+//! repeats = 3
+//! timeout_s = 300
+//!
+//! [[scenario]]
+//! id = "cantilever-gravity"
+//! params = { length = 0.1 }                  # overrides (optional)
+//! sweep = { segments = [10, 20, 40, 80] }    # cartesian product (optional)
+//! quick_sweep = { segments = [10, 20] }      # used by --quick (optional)
+//! [scenario.models.der]                      # per-model sweep (optional)
+//! sweep = { segments = [10, 20], integrator = [0, 1] }
+//! ```
+//!
+//! A model appears in a comparison by being registered and supporting its
+//! scenarios; only a comparison that lists models explicitly names them.
+
+use crate::registry;
+use crate::scenario::{Params, UsageError};
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::Path;
+use surgbench_core::Fidelity;
+
+/// Which models a comparison runs.
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(untagged)]
+pub enum ModelSelection {
+    /// `"all"`.
+    All(String),
+    /// An explicit list of ids.
+    List(Vec<String>),
+}
+
+/// Per-model settings inside a scenario entry.
+#[derive(Debug, Clone, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct ModelEntry {
+    /// Replaces the scenario sweep for this model.
+    pub sweep: Option<BTreeMap<String, Vec<f64>>>,
+    /// Replaces the quick sweep for this model.
+    pub quick_sweep: Option<BTreeMap<String, Vec<f64>>>,
+    /// Fixed knobs added to every sweep point of this model.
+    #[serde(default)]
+    pub fidelity: BTreeMap<String, f64>,
+}
+
+/// One scenario of a comparison.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScenarioEntry {
+    /// Scenario id.
+    pub id: String,
+    /// Parameter overrides.
+    #[serde(default)]
+    pub params: BTreeMap<String, f64>,
+    /// Fidelity sweep (cartesian product); default: the scenario's own.
+    pub sweep: Option<BTreeMap<String, Vec<f64>>>,
+    /// Sweep for `--quick`; default: the scenario's quick sweep.
+    pub quick_sweep: Option<BTreeMap<String, Vec<f64>>>,
+    /// Per-model settings.
+    #[serde(default)]
+    pub models: BTreeMap<String, ModelEntry>,
+}
+
+/// A comparison file.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Comparison {
+    /// Name (the report folder is named after it).
+    pub name: String,
+    /// One line.
+    #[serde(default)]
+    pub description: String,
+    /// Models to run.
+    pub models: ModelSelection,
+    /// Repeats per run (timings pooled).
+    pub repeats: Option<usize>,
+    /// Wall-clock limit per run (s).
+    pub timeout_s: Option<f64>,
+    /// Scenarios.
+    pub scenario: Vec<ScenarioEntry>,
+}
+
+/// One run to do.
+#[derive(Debug, Clone)]
+pub struct Job {
+    /// Scenario id.
+    pub scenario: String,
+    /// Parameter overrides.
+    pub params: Vec<(String, f64)>,
+    /// Model id.
+    pub model: String,
+    /// Requested fidelity (model defaults fill the rest).
+    pub fidelity: Fidelity,
+    /// Why the model cannot run this scenario, if it cannot: no process is
+    /// started, the report shows the reason.
+    pub unsupported: Option<String>,
+}
+
+fn expand(grid: &BTreeMap<String, Vec<f64>>) -> Result<Vec<Fidelity>, UsageError> {
+    let mut out = vec![Fidelity::default()];
+    for (k, vals) in grid {
+        if vals.is_empty() {
+            return Err(UsageError(format!("sweep of `{k}` is empty")));
+        }
+        let mut next = Vec::new();
+        for f in &out {
+            for v in vals {
+                let mut g = f.clone();
+                g.set(k, *v).map_err(|e| UsageError(e.0))?;
+                next.push(g);
+            }
+        }
+        out = next;
+    }
+    Ok(out)
+}
+
+impl Comparison {
+    /// Parse a comparison file; errors name the file and the problem.
+    pub fn load(path: &Path) -> Result<Self, UsageError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| UsageError(format!("cannot read comparison {}: {e}", path.display())))?;
+        Self::parse(&text).map_err(|e| UsageError(format!("{}: {}", path.display(), e.0)))
+    }
+
+    /// Parse comparison TOML text.
+    pub fn parse(text: &str) -> Result<Self, UsageError> {
+        let c: Comparison = toml::from_str(text).map_err(|e| UsageError(format!("malformed comparison TOML: {}", e.message())))?;
+        if let ModelSelection::All(s) = &c.models
+            && s != "all"
+        {
+            return Err(UsageError(format!("`models` must be \"all\" or a list of ids, got \"{s}\"")));
+        }
+        if c.scenario.is_empty() {
+            return Err(UsageError("comparison has no [[scenario]]".into()));
+        }
+        if c.repeats == Some(0) {
+            return Err(UsageError("repeats must be >= 1".into()));
+        }
+        if let Some(t) = c.timeout_s
+            && !(t > 0.0)
+        {
+            return Err(UsageError(format!("timeout_s must be > 0, got {t}")));
+        }
+        Ok(c)
+    }
+
+    /// Expand into jobs, validating every scenario, parameter, model and
+    /// fidelity knob before anything runs. `only` restricts the models.
+    pub fn jobs(&self, quick: bool, only: Option<&[String]>) -> Result<Vec<Job>, UsageError> {
+        let all = registry::models();
+        let mut ids: Vec<&str> = match &self.models {
+            ModelSelection::All(_) => all.iter().map(|r| r.factory.id()).collect(),
+            ModelSelection::List(l) => {
+                for m in l {
+                    registry::model(m)?;
+                }
+                l.iter().map(|s| s.as_str()).collect()
+            }
+        };
+        if let Some(only) = only {
+            for m in only {
+                registry::model(m)?;
+            }
+            ids.retain(|id| only.iter().any(|o| o == id));
+        }
+        let mut jobs = Vec::new();
+        for entry in &self.scenario {
+            let sc = registry::scenario(&entry.id)?;
+            let overrides: Vec<(String, f64)> = entry.params.iter().map(|(k, v)| (k.clone(), *v)).collect();
+            let params = Params::resolve(sc.id(), sc.params(), &overrides)?;
+            let inst = sc.instantiate(&params)?;
+            for m in entry.models.keys() {
+                registry::model(m)?;
+            }
+            for id in &ids {
+                let f = registry::model(id)?;
+                let me = entry.models.get(*id).cloned().unwrap_or_default();
+                if let Err(u) = f.check(inst.scene()) {
+                    jobs.push(Job {
+                        scenario: sc.id().into(),
+                        params: overrides.clone(),
+                        model: id.to_string(),
+                        fidelity: Fidelity::default(),
+                        unsupported: Some(u.reason),
+                    });
+                    continue;
+                }
+                let grid = if quick {
+                    me.quick_sweep.as_ref().or(entry.quick_sweep.as_ref())
+                } else {
+                    me.sweep.as_ref().or(entry.sweep.as_ref())
+                };
+                let sweep = match grid {
+                    Some(g) => expand(g)?,
+                    None if quick => sc.quick_sweep(),
+                    None => sc.sweep(),
+                };
+                let fixed = expand(&me.fidelity.iter().map(|(k, v)| (k.clone(), vec![*v])).collect())?;
+                for fid in sweep {
+                    let fid = fid.merged(&fixed[0]);
+                    fid.check_extras(f.fidelity_keys())
+                        .map_err(|e| UsageError(format!("scenario `{}`, model `{id}`: {}", sc.id(), e.0)))?;
+                    jobs.push(Job {
+                        scenario: sc.id().into(),
+                        params: overrides.clone(),
+                        model: id.to_string(),
+                        fidelity: fid,
+                        unsupported: None,
+                    });
+                }
+            }
+        }
+        Ok(jobs)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn malformed_toml_is_a_usage_error() {
+        let e = Comparison::parse("name = \"x\"\nmodels = [1, 2").unwrap_err();
+        assert!(e.0.contains("malformed"), "{e}");
+        let e = Comparison::parse("name = \"x\"\nmodels = \"some\"\n[[scenario]]\nid = \"a\"").unwrap_err();
+        assert!(e.0.contains("\"all\""), "{e}");
+        let e = Comparison::parse("name = \"x\"\nmodels = \"all\"\nbogus = 1\n[[scenario]]\nid = \"a\"").unwrap_err();
+        assert!(e.0.contains("bogus"), "{e}");
+    }
+
+    #[test]
+    fn unknown_scenario_and_parameter_are_named() {
+        let c = Comparison::parse("name = \"x\"\nmodels = \"all\"\n[[scenario]]\nid = \"nope\"").unwrap();
+        assert!(c.jobs(false, None).unwrap_err().0.contains("unknown scenario `nope`"));
+        let c = Comparison::parse(
+            "name = \"x\"\nmodels = \"all\"\n[[scenario]]\nid = \"cantilever-gravity\"\nparams = { lenght = 1.0 }",
+        )
+        .unwrap();
+        assert!(c.jobs(false, None).unwrap_err().0.contains("no parameter `lenght`"));
+        let c = Comparison::parse(
+            "name = \"x\"\nmodels = \"all\"\n[[scenario]]\nid = \"cantilever-gravity\"\nparams = { length = -1.0 }",
+        )
+        .unwrap();
+        assert!(c.jobs(false, None).unwrap_err().0.contains("`length`"));
+    }
+
+    #[test]
+    fn sweep_is_a_cartesian_product() {
+        let g: BTreeMap<String, Vec<f64>> = [("segments".to_string(), vec![10.0, 20.0]), ("dt".to_string(), vec![1e-3, 1e-4])].into();
+        let f = expand(&g).unwrap();
+        assert_eq!(f.len(), 4);
+        assert!(expand(&[("dt".to_string(), vec![-1.0])].into()).is_err());
+    }
+}

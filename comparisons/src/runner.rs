@@ -1,0 +1,404 @@
+//! Running one scenario x model x fidelity: warm-up, per-step timing,
+//! stability watchdogs, scoring, and the files `run-one` writes.
+//!
+//! Only `Model::step` is inside the timed region; observing, watchdogs and
+//! scoring are outside it. Repeats rebuild the model from scratch and must
+//! reproduce the first run bit for bit, or the run is marked failed.
+
+use crate::scenario::{Params, Scenario, ScenarioRun, UsageError};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::Path;
+use std::time::Instant;
+use surgbench_core::{BuildError, Fidelity, ModelFactory, Observation};
+
+/// How to run.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// Full repeats of the run (timings pooled; results must be identical).
+    pub repeats: usize,
+    /// Steps excluded from timing at the start of each repeat.
+    pub warmup: usize,
+    /// Keep roughly this many samples of the time series.
+    pub samples: usize,
+    /// Largest relative edge stretch before the stretch watchdog trips.
+    pub stretch_limit: f64,
+}
+
+impl Default for RunOptions {
+    fn default() -> Self {
+        Self {
+            repeats: 1,
+            warmup: 5,
+            samples: 400,
+            stretch_limit: 0.05,
+        }
+    }
+}
+
+/// One sample of the time series (`observables.csv`).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Sample {
+    /// Time (s).
+    pub t: f64,
+    /// Tip position (m).
+    pub tip: [f64; 3],
+    /// Hand force (N).
+    pub hand_force: [f64; 3],
+    /// Hand torque (N m).
+    pub hand_torque: [f64; 3],
+    /// Total mechanical energy (J).
+    pub energy: f64,
+    /// Primary error at this time.
+    pub error: f64,
+}
+
+/// Everything measured in one run; serialised as `summary.json`.
+#[derive(Debug, Clone, Serialize, Default)]
+pub struct RunSummary {
+    /// Scenario id.
+    pub scenario: String,
+    /// Model id.
+    pub model: String,
+    /// All resolved parameter values.
+    pub params: BTreeMap<String, f64>,
+    /// Overrides as given (`k=v;k=v`).
+    pub overrides: String,
+    /// Resolved fidelity (model defaults overlaid with the request).
+    pub fidelity: BTreeMap<String, f64>,
+    /// Resolved fidelity as a string.
+    pub fidelity_string: String,
+    /// `ok`, `unstable`, `unsupported`, `failed`.
+    pub status: String,
+    /// Why, when not ok.
+    pub reason: String,
+    /// `settled`, `time-limit`, `duration`, `watchdog`, or empty.
+    pub end: String,
+    /// Steps taken (first repeat).
+    pub steps: usize,
+    /// Simulated time reached (s).
+    pub sim_time_s: f64,
+    /// Median wall time of one step after warm-up (ms).
+    pub ms_per_step_median: Option<f64>,
+    /// 95th percentile (ms).
+    pub ms_per_step_p95: Option<f64>,
+    /// Steps per wall second.
+    pub steps_per_s: Option<f64>,
+    /// Simulated seconds per wall second (> 1 is faster than real time).
+    pub real_time_factor: Option<f64>,
+    /// Mean solver iterations per step.
+    pub solver_iters_mean: Option<f64>,
+    /// Largest solver iteration count.
+    pub solver_iters_max: Option<f64>,
+    /// Peak resident memory of the process (MB), where the OS tells.
+    pub peak_rss_mb: Option<f64>,
+    /// Model build time (ms).
+    pub build_ms: Option<f64>,
+    /// No watchdog tripped.
+    pub stable: bool,
+    /// First watchdog that tripped, with what it saw.
+    pub watchdog: String,
+    /// When it tripped (s).
+    pub watchdog_t: Option<f64>,
+    /// Headline error metric name.
+    pub primary_error: String,
+    /// Error metrics against the reference.
+    pub errors: BTreeMap<String, f64>,
+    /// Final tip position (m).
+    pub tip: Option<[f64; 3]>,
+    /// Reference tip position (m).
+    pub reference_tip: Option<[f64; 3]>,
+    /// Repeats run.
+    pub repeats: usize,
+    /// Time series (not in summary.json; written to observables.csv).
+    #[serde(skip)]
+    pub series: Vec<Sample>,
+    /// Final observation (not serialised; written to final_state.csv).
+    #[serde(skip)]
+    pub final_obs: Option<Observation>,
+}
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    let i = ((sorted.len() - 1) as f64 * p).round() as usize;
+    sorted[i]
+}
+
+/// Peak resident set size (MB) from `/proc/self/status` (`VmHWM`), if any.
+pub fn peak_rss_mb() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
+}
+
+/// The watchdogs: the first one that trips, with what it saw.
+fn watchdog(obs: &Observation, run: &dyn ScenarioRun, e0: f64, opts: &RunOptions) -> Option<String> {
+    if !obs.is_finite() {
+        return Some("non-finite state".into());
+    }
+    let bound = 10.0 * run.length_scale();
+    for r in &obs.rods {
+        if let Some(x) = r.nodes.iter().find(|x| x.norm() > bound) {
+            return Some(format!("node left the scene: |x| = {:.3e} m > {bound:.3e} m", x.norm()));
+        }
+        if r.max_stretch.abs() > opts.stretch_limit {
+            return Some(format!("stretch {:.3e} > {}", r.max_stretch, opts.stretch_limit));
+        }
+    }
+    let de = obs.energy.total() - e0;
+    let limit = 10.0 * run.energy_scale();
+    if de > limit {
+        return Some(format!("energy grew by {de:.3e} J > {limit:.3e} J"));
+    }
+    let pen = obs.max_penetration();
+    if pen > run.penetration_limit() {
+        return Some(format!("penetration {pen:.3e} m > {:.3e} m", run.penetration_limit()));
+    }
+    None
+}
+
+/// What became of one repeat.
+struct Repeat {
+    steps: usize,
+    t: f64,
+    times_ms: Vec<f64>,
+    iters: Vec<u32>,
+    end: String,
+    trip: Option<(String, f64)>,
+    series: Vec<Sample>,
+    last: Observation,
+}
+
+fn run_repeat(
+    model: &mut dyn surgbench_core::Model,
+    run: &dyn ScenarioRun,
+    primary: &str,
+    opts: &RunOptions,
+    record: bool,
+) -> Repeat {
+    let scene = run.scene();
+    let dt = model.dt();
+    let max_steps = (scene.duration / dt).ceil().max(1.0) as usize;
+    let every = (max_steps / opts.samples.max(1)).max(1);
+    let first = model.observe();
+    let e0 = first.energy.total();
+    let mut rep = Repeat {
+        steps: 0,
+        t: 0.0,
+        times_ms: Vec::with_capacity(max_steps),
+        iters: Vec::with_capacity(max_steps),
+        end: if scene.settle.is_some() { "time-limit" } else { "duration" }.into(),
+        trip: None,
+        series: Vec::new(),
+        last: first,
+    };
+    let sample = |obs: &Observation, run: &dyn ScenarioRun| -> Sample {
+        let tip = obs.rods.first().map(|r| r.tip()).unwrap_or_default();
+        Sample {
+            t: obs.time,
+            tip: [tip.x, tip.y, tip.z],
+            hand_force: [obs.hand_force.x, obs.hand_force.y, obs.hand_force.z],
+            hand_torque: [obs.hand_torque.x, obs.hand_torque.y, obs.hand_torque.z],
+            energy: obs.energy.total(),
+            error: run.score(obs).get(primary).copied().unwrap_or(f64::NAN),
+        }
+    };
+    if record {
+        rep.series.push(sample(&rep.last, run));
+    }
+    for k in 0..max_steps {
+        let t = (k + 1) as f64 * dt;
+        let cmd = scene.control.command_at(t);
+        let start = Instant::now();
+        let res = model.step(dt, &cmd);
+        let ms = start.elapsed().as_secs_f64() * 1e3;
+        rep.steps = k + 1;
+        rep.t = t;
+        match res {
+            Err(e) => {
+                rep.trip = Some((e.to_string(), t));
+                rep.end = "watchdog".into();
+                break;
+            }
+            Ok(stats) => {
+                if k >= opts.warmup {
+                    rep.times_ms.push(ms);
+                }
+                rep.iters.push(stats.iterations);
+            }
+        }
+        let obs = model.observe();
+        if let Some(w) = watchdog(&obs, run, e0, opts) {
+            rep.trip = Some((w, t));
+            rep.end = "watchdog".into();
+            rep.last = obs;
+            break;
+        }
+        let settled = scene
+            .settle
+            .is_some_and(|s| t >= s.min_time && obs.max_speed() < s.velocity_tol);
+        if record && (k % every == every - 1 || settled || k + 1 == max_steps) {
+            rep.series.push(sample(&obs, run));
+        }
+        rep.last = obs;
+        if settled {
+            rep.end = "settled".into();
+            break;
+        }
+    }
+    rep
+}
+
+/// Run one scenario instance with one model at one fidelity.
+///
+/// Unsupported scenes and runs that trip a watchdog are results, not errors;
+/// a bad fidelity knob is a [`UsageError`].
+pub fn run_single(
+    scenario: &dyn Scenario,
+    params: &Params,
+    run: &dyn ScenarioRun,
+    factory: &dyn ModelFactory,
+    fidelity: &Fidelity,
+    opts: &RunOptions,
+) -> Result<RunSummary, UsageError> {
+    let scene = run.scene();
+    let fid = factory.default_fidelity(scene).merged(fidelity);
+    let mut s = RunSummary {
+        scenario: scenario.id().into(),
+        model: factory.id().into(),
+        params: params.values().clone(),
+        overrides: params.overrides_string(),
+        fidelity: fid.pairs().into_iter().collect(),
+        fidelity_string: fid.to_string(),
+        primary_error: scenario.primary_error().into(),
+        reference_tip: run.reference_tip(),
+        repeats: opts.repeats.max(1),
+        ..Default::default()
+    };
+    if let Err(u) = factory.check(scene) {
+        s.status = "unsupported".into();
+        s.reason = u.reason;
+        return Ok(s);
+    }
+    let mut times = Vec::new();
+    let mut iters = Vec::new();
+    let mut first: Option<Repeat> = None;
+    for r in 0..opts.repeats.max(1) {
+        let t0 = Instant::now();
+        let mut model = match factory.build(scene, &fid) {
+            Ok(m) => m,
+            Err(BuildError::Unsupported(u)) => {
+                s.status = "unsupported".into();
+                s.reason = u.reason;
+                return Ok(s);
+            }
+            Err(BuildError::BadParameter { name, reason }) => {
+                return Err(UsageError(format!("model `{}`: bad parameter `{name}`: {reason}", factory.id())));
+            }
+        };
+        if r == 0 {
+            s.build_ms = Some(t0.elapsed().as_secs_f64() * 1e3);
+        }
+        let rep = run_repeat(model.as_mut(), run, scenario.primary_error(), opts, r == 0);
+        times.extend_from_slice(&rep.times_ms);
+        iters.extend(rep.iters.iter().map(|&i| i as f64));
+        match &first {
+            None => first = Some(rep),
+            Some(f) => {
+                if f.last != rep.last || f.steps != rep.steps {
+                    s.status = "failed".into();
+                    s.reason = format!("non-deterministic: repeat {r} differs from repeat 0");
+                }
+            }
+        }
+    }
+    let rep = first.expect("at least one repeat");
+    s.steps = rep.steps;
+    s.sim_time_s = rep.t;
+    s.end = rep.end.clone();
+    if !times.is_empty() {
+        let mut sorted = times.clone();
+        sorted.sort_by(f64::total_cmp);
+        let total: f64 = times.iter().sum();
+        s.ms_per_step_median = Some(percentile(&sorted, 0.5));
+        s.ms_per_step_p95 = Some(percentile(&sorted, 0.95));
+        s.steps_per_s = Some(times.len() as f64 / (total / 1e3));
+        let dt = rep.t / rep.steps as f64;
+        s.real_time_factor = Some(times.len() as f64 * dt / (total / 1e3));
+    }
+    if !iters.is_empty() {
+        s.solver_iters_mean = Some(iters.iter().sum::<f64>() / iters.len() as f64);
+        s.solver_iters_max = iters.iter().copied().reduce(f64::max);
+    }
+    s.peak_rss_mb = peak_rss_mb();
+    s.stable = rep.trip.is_none();
+    if let Some((w, t)) = &rep.trip {
+        s.watchdog = w.clone();
+        s.watchdog_t = Some(*t);
+        if s.status.is_empty() {
+            s.status = "unstable".into();
+            s.reason = format!("{w} at t={t:.4} s");
+        }
+    }
+    if s.status.is_empty() {
+        s.status = "ok".into();
+    }
+    if rep.last.is_finite() {
+        s.errors = run.score(&rep.last);
+        s.tip = rep.last.rods.first().map(|r| {
+            let t = r.tip();
+            [t.x, t.y, t.z]
+        });
+    }
+    s.series = rep.series;
+    s.final_obs = Some(rep.last);
+    Ok(s)
+}
+
+/// Write `summary.json`, `observables.csv` and `final_state.csv` into `dir`
+/// (which must exist).
+pub fn write_run_files(dir: &Path, s: &RunSummary) -> std::io::Result<()> {
+    let json = serde_json::to_string_pretty(s).map_err(std::io::Error::other)?;
+    std::fs::write(dir.join("summary.json"), json + "\n")?;
+    let mut f = std::io::BufWriter::new(std::fs::File::create(dir.join("observables.csv"))?);
+    writeln!(f, "t,tip_x,tip_y,tip_z,hand_fx,hand_fy,hand_fz,hand_tx,hand_ty,hand_tz,energy,error")?;
+    for x in &s.series {
+        let err = if x.error.is_finite() { format!("{:e}", x.error) } else { String::new() };
+        writeln!(
+            f,
+            "{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{}",
+            x.t,
+            x.tip[0],
+            x.tip[1],
+            x.tip[2],
+            x.hand_force[0],
+            x.hand_force[1],
+            x.hand_force[2],
+            x.hand_torque[0],
+            x.hand_torque[1],
+            x.hand_torque[2],
+            x.energy,
+            err
+        )?;
+    }
+    f.flush()?;
+    let mut f = std::io::BufWriter::new(std::fs::File::create(dir.join("final_state.csv"))?);
+    writeln!(f, "body,node,x0,y0,z0,x,y,z")?;
+    if let Some(obs) = &s.final_obs {
+        let mut body = 0;
+        for r in &obs.rods {
+            for (i, (x0, x)) in r.rest.iter().zip(&r.nodes).enumerate() {
+                writeln!(f, "{body},{i},{:e},{:e},{:e},{:e},{:e},{:e}", x0.x, x0.y, x0.z, x.x, x.y, x.z)?;
+            }
+            body += 1;
+        }
+        for t in &obs.tissues {
+            for (i, (x0, x)) in t.rest.iter().zip(&t.nodes).enumerate() {
+                writeln!(f, "{body},{i},{:e},{:e},{:e},{:e},{:e},{:e}", x0.x, x0.y, x0.z, x.x, x.y, x.z)?;
+            }
+            body += 1;
+        }
+    }
+    f.flush()
+}

@@ -1,0 +1,213 @@
+//! Scenarios: a scene builder with named parameters, a reference, metrics
+//! and a default fidelity sweep.
+//!
+//! A [`Scenario`] validates user parameters and returns a [`ScenarioRun`]
+//! that holds the scene and its precomputed reference, so scoring a model's
+//! observation is cheap and the reference is computed once per parameter
+//! set, outside any timed loop.
+
+use std::collections::BTreeMap;
+use std::fmt;
+use surgbench_core::{Family, Fidelity, Observation, Scene};
+
+/// A usage error: bad parameter, unknown name. The CLI prints it on one line
+/// and exits with code 2.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct UsageError(pub String);
+
+impl fmt::Display for UsageError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for UsageError {}
+
+/// Admissible range of a parameter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Range {
+    /// `v > 0`.
+    Positive,
+    /// `v >= 0`.
+    NonNegative,
+    /// Any finite value.
+    Any,
+    /// `lo < v < hi`.
+    Open(f64, f64),
+    /// `lo <= v <= hi`.
+    Closed(f64, f64),
+}
+
+impl Range {
+    fn check(self, v: f64) -> bool {
+        v.is_finite()
+            && match self {
+                Range::Positive => v > 0.0,
+                Range::NonNegative => v >= 0.0,
+                Range::Any => true,
+                Range::Open(a, b) => v > a && v < b,
+                Range::Closed(a, b) => v >= a && v <= b,
+            }
+    }
+
+    fn describe(self) -> String {
+        match self {
+            Range::Positive => "> 0".into(),
+            Range::NonNegative => ">= 0".into(),
+            Range::Any => "finite".into(),
+            Range::Open(a, b) => format!("in ({a}, {b})"),
+            Range::Closed(a, b) => format!("in [{a}, {b}]"),
+        }
+    }
+}
+
+/// A named scenario parameter with its default, unit and range.
+#[derive(Debug, Clone, Copy)]
+pub struct ParamSpec {
+    /// Name used with `--param name=value`.
+    pub name: &'static str,
+    /// Default value (SI).
+    pub default: f64,
+    /// Unit, e.g. `m`, `Pa`, `N`, `rad`, `1`.
+    pub unit: &'static str,
+    /// Admissible values.
+    pub range: Range,
+    /// One line.
+    pub doc: &'static str,
+}
+
+/// Resolved parameter values: defaults overlaid with the user's overrides.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Params {
+    values: BTreeMap<String, f64>,
+    overridden: Vec<(String, f64)>,
+}
+
+impl Params {
+    /// Resolve overrides against the specs; unknown names and out-of-range
+    /// values are usage errors naming the parameter.
+    pub fn resolve(scenario: &str, specs: &[ParamSpec], overrides: &[(String, f64)]) -> Result<Self, UsageError> {
+        let mut values: BTreeMap<String, f64> = specs.iter().map(|s| (s.name.to_string(), s.default)).collect();
+        for (k, v) in overrides {
+            let Some(spec) = specs.iter().find(|s| s.name == k) else {
+                let known: Vec<_> = specs.iter().map(|s| s.name).collect();
+                return Err(UsageError(format!(
+                    "scenario `{scenario}` has no parameter `{k}` (known: {})",
+                    known.join(", ")
+                )));
+            };
+            if !spec.range.check(*v) {
+                return Err(UsageError(format!(
+                    "parameter `{k}` of `{scenario}` must be {} {}, got {v}",
+                    spec.range.describe(),
+                    spec.unit
+                )));
+            }
+            values.insert(k.clone(), *v);
+        }
+        Ok(Self {
+            values,
+            overridden: overrides.to_vec(),
+        })
+    }
+
+    /// Value of a parameter (panics only on a programming error: a name the
+    /// scenario did not declare).
+    pub fn get(&self, name: &str) -> f64 {
+        match self.values.get(name) {
+            Some(v) => *v,
+            None => panic!("scenario asked for undeclared parameter `{name}`"),
+        }
+    }
+
+    /// All resolved values.
+    pub fn values(&self) -> &BTreeMap<String, f64> {
+        &self.values
+    }
+
+    /// The overrides as given, `k=v;k=v` (empty for defaults).
+    pub fn overrides_string(&self) -> String {
+        self.overridden
+            .iter()
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect::<Vec<_>>()
+            .join(";")
+    }
+}
+
+/// Parse `key=value` parameter overrides.
+pub fn parse_overrides<S: AsRef<str>>(pairs: &[S]) -> Result<Vec<(String, f64)>, UsageError> {
+    pairs
+        .iter()
+        .map(|p| {
+            let p = p.as_ref();
+            let (k, v) = p
+                .split_once('=')
+                .ok_or_else(|| UsageError(format!("parameter `{p}` is not of the form name=value")))?;
+            let x: f64 = v
+                .trim()
+                .parse()
+                .map_err(|_| UsageError(format!("parameter `{k}`: `{v}` is not a number")))?;
+            Ok((k.trim().to_string(), x))
+        })
+        .collect()
+}
+
+/// One instantiated scenario: the scene and its reference.
+pub trait ScenarioRun: Send {
+    /// The scene every model runs.
+    fn scene(&self) -> &Scene;
+    /// Error metrics of an observation against the reference (SI; names end
+    /// in their unit or `_rel`).
+    fn score(&self, obs: &Observation) -> BTreeMap<String, f64>;
+    /// Energy scale (J): the energy growth watchdog trips past 10x this.
+    fn energy_scale(&self) -> f64;
+    /// Length scale (m): a node farther than 10x this from the origin trips
+    /// the bounding watchdog.
+    fn length_scale(&self) -> f64;
+    /// The reference tip position (m), if the scenario has one.
+    fn reference_tip(&self) -> Option<[f64; 3]> {
+        None
+    }
+    /// Penetration (m) past which the penetration watchdog trips.
+    fn penetration_limit(&self) -> f64 {
+        f64::INFINITY
+    }
+}
+
+/// A scenario of the catalogue.
+pub trait Scenario: Send + Sync {
+    /// Stable id, e.g. `cantilever-gravity`.
+    fn id(&self) -> &'static str;
+    /// One line.
+    fn description(&self) -> &'static str;
+    /// Which model family it exercises.
+    fn family(&self) -> Family;
+    /// Parameters with defaults.
+    fn params(&self) -> &'static [ParamSpec];
+    /// What the reference is, one line (shown in the report).
+    fn reference(&self) -> &'static str;
+    /// Name of the headline error metric (a key of `score`).
+    fn primary_error(&self) -> &'static str;
+    /// Default fidelity sweep.
+    fn sweep(&self) -> Vec<Fidelity>;
+    /// A smaller sweep for `--quick`.
+    fn quick_sweep(&self) -> Vec<Fidelity> {
+        let s = self.sweep();
+        s.into_iter().take(3).collect()
+    }
+    /// Validate parameters, build the scene and compute the reference.
+    fn instantiate(&self, params: &Params) -> Result<Box<dyn ScenarioRun>, UsageError>;
+}
+
+/// Sweep over one fidelity knob.
+pub fn sweep_of(knob: &str, values: &[f64]) -> Vec<Fidelity> {
+    values
+        .iter()
+        .map(|v| {
+            let mut f = Fidelity::default();
+            f.set(knob, *v).expect("static sweep values are valid");
+            f
+        })
+        .collect()
+}

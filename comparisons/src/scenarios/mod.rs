@@ -1,0 +1,3 @@
+//! The scenario catalogue.
+
+pub mod rod;
