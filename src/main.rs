@@ -130,13 +130,22 @@ fn find_comparison(name: &str) -> Result<PathBuf, UsageError> {
     }
 }
 
+/// Compact number for listings: scientific outside [1e-3, 1e4).
+fn short(v: f64) -> String {
+    if v != 0.0 && (v.abs() >= 1e4 || v.abs() < 1e-3) {
+        format!("{v:e}")
+    } else {
+        format!("{}", (v * 1e6).round() / 1e6)
+    }
+}
+
 fn list() {
     println!("SCENARIOS");
     for s in registry::scenarios() {
         println!("  {:<22} [{}] {}", s.id(), s.family().name(), s.description());
         println!("  {:<22} reference: {}", "", s.reference());
         for p in s.params() {
-            println!("  {:<24}{:<16} = {:<10} {:<7} {}", "", p.name, p.default, p.unit, p.doc);
+            println!("  {:<24}{:<16} = {:<10} {:<7} {}", "", p.name, short(p.default), p.unit, p.doc);
         }
     }
     println!("\nMODELS");

@@ -139,12 +139,17 @@ fn row_from_summary(mut row: ResultRow, v: &serde_json::Value) -> ResultRow {
 /// Last meaningful lines of a child's stderr (the panic message).
 fn stderr_tail(path: &Path) -> String {
     let s = std::fs::read_to_string(path).unwrap_or_default();
-    let lines: Vec<&str> = s
-        .lines()
-        .filter(|l| !l.trim().is_empty() && !l.starts_with("note:") && !l.starts_with("stack backtrace"))
-        .collect();
-    let tail = lines.iter().rev().take(2).rev().copied().collect::<Vec<_>>().join(" | ");
-    tail.chars().take(400).collect()
+    let lines: Vec<&str> = s.lines().map(str::trim).filter(|l| !l.is_empty() && !l.starts_with("note:")).collect();
+    // A Rust panic prints "thread '...' panicked at FILE:LINE:COL:" then the message.
+    let tail = match lines.iter().position(|l| l.contains("panicked at")) {
+        Some(i) => lines[i..(i + 2).min(lines.len())].join(" "),
+        None => lines.iter().rev().take(2).rev().copied().collect::<Vec<_>>().join(" | "),
+    };
+    if tail.is_empty() {
+        "no message".into()
+    } else {
+        tail.chars().take(400).collect()
+    }
 }
 
 /// Run one job in a child process; returns its row.
@@ -179,6 +184,7 @@ fn run_job(c: &Comparison, job: &Job, runs: &Path, opts: &BatchOptions, repeats:
         cmd.arg("--fidelity").arg(format!("{k}={v}"));
     }
     cmd.env("RAYON_NUM_THREADS", opts.threads.to_string())
+        .env("RUST_BACKTRACE", "0")
         .stdin(Stdio::null())
         .stdout(Stdio::null());
     match std::fs::File::create(&err_path) {
@@ -231,7 +237,12 @@ fn run_job(c: &Comparison, job: &Job, runs: &Path, opts: &BatchOptions, repeats:
         },
         Some(s) => {
             row.status = "failed".into();
-            let code = s.code().map(|c| format!("exit code {c}")).unwrap_or_else(|| "killed by a signal".into());
+            let code = match (s.code(), std::os::unix::process::ExitStatusExt::signal(&s)) {
+                (Some(c), _) => format!("exit code {c}"),
+                (None, Some(6)) => "aborted (SIGABRT)".into(),
+                (None, Some(sig)) => format!("killed by signal {sig}"),
+                (None, None) => "killed".into(),
+            };
             row.reason = format!("{code} after {elapsed:.2} s: {}", stderr_tail(&err_path));
         }
     }
@@ -355,31 +366,37 @@ pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultR
     let repeats = if opts.quick { 1 } else { opts.repeats.or(c.repeats).unwrap_or(1) };
     let timeout = opts.timeout_s.or(c.timeout_s).unwrap_or(300.0);
     let tmp = temp_sibling(&opts.out).map_err(io("cannot create the temporary report folder"))?;
-    let runs = tmp.join("runs");
-    std::fs::create_dir_all(&runs).map_err(io("cannot create runs/"))?;
-    let bar = if opts.quiet {
-        indicatif::ProgressBar::hidden()
-    } else {
-        let b = indicatif::ProgressBar::new(jobs.len() as u64);
-        b.set_style(
-            indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} {msg}")
-                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-        );
-        b
-    };
-    let mut rows = Vec::with_capacity(jobs.len());
-    for job in &jobs {
-        bar.set_message(format!("{} / {} / {}", job.scenario, job.model, job.fidelity));
-        rows.push(run_job(c, job, &runs, opts, repeats, timeout));
-        bar.inc(1);
+    let result = (|| -> Result<Vec<ResultRow>, BatchError> {
+        let runs = tmp.join("runs");
+        std::fs::create_dir_all(&runs).map_err(io("cannot create runs/"))?;
+        let bar = if opts.quiet {
+            indicatif::ProgressBar::hidden()
+        } else {
+            let b = indicatif::ProgressBar::new(jobs.len() as u64);
+            b.set_style(
+                indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} {msg}")
+                    .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+            );
+            b
+        };
+        let mut rows = Vec::with_capacity(jobs.len());
+        for job in &jobs {
+            bar.set_message(format!("{} / {} / {}", job.scenario, job.model, job.fidelity));
+            rows.push(run_job(c, job, &runs, opts, repeats, timeout));
+            bar.inc(1);
+        }
+        bar.finish_and_clear();
+        let mut info = run_info(&c.name, opts);
+        info.wall_s = started.elapsed().as_secs_f64();
+        surgbench_reports::write_results_csv(&tmp.join("results.csv"), &rows).map_err(|e| BatchError::Io(e.to_string()))?;
+        let json = serde_json::to_string_pretty(&info).map_err(|e| BatchError::Io(e.to_string()))?;
+        std::fs::write(tmp.join("summary.json"), json + "\n").map_err(io("cannot write summary.json"))?;
+        surgbench_reports::render(&tmp, &rows, &info).map_err(|e| BatchError::Io(e.to_string()))?;
+        replace_dir(&tmp, &opts.out).map_err(io("cannot move the report into place"))?;
+        Ok(rows)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_dir_all(&tmp);
     }
-    bar.finish_and_clear();
-    let mut info = run_info(&c.name, opts);
-    info.wall_s = started.elapsed().as_secs_f64();
-    surgbench_reports::write_results_csv(&tmp.join("results.csv"), &rows).map_err(|e| BatchError::Io(e.to_string()))?;
-    let json = serde_json::to_string_pretty(&info).map_err(|e| BatchError::Io(e.to_string()))?;
-    std::fs::write(tmp.join("summary.json"), json + "\n").map_err(io("cannot write summary.json"))?;
-    surgbench_reports::render(&tmp, &rows, &info).map_err(|e| BatchError::Io(e.to_string()))?;
-    replace_dir(&tmp, &opts.out).map_err(io("cannot move the report into place"))?;
-    Ok(rows)
+    result
 }

@@ -25,7 +25,17 @@ macro_rules! register {
 
 /// Every registered model, in report order.
 pub fn models() -> Vec<Registered> {
-    register![]
+    let mut v = register![];
+    if std::env::var("SURGBENCH_FAULTY_MODELS").as_deref() == Ok("1") {
+        use crate::faulty;
+        for f in [&faulty::PANIC, &faulty::ABORT, &faulty::HANG, &faulty::NONFINITE] {
+            v.push(Registered {
+                factory: f,
+                krate: "faulty",
+            });
+        }
+    }
+    v
 }
 
 /// Every scenario, in report order.

@@ -13,6 +13,10 @@ use std::path::Path;
 use std::time::Instant;
 use surgbench_core::{BuildError, Fidelity, ModelFactory, Observation};
 
+/// A run cannot count as settled before this many steps: a model at rest
+/// before the load acts must not pass for one at equilibrium.
+const MIN_SETTLE_STEPS: usize = 10;
+
 /// How to run.
 #[derive(Debug, Clone)]
 pub struct RunOptions {
@@ -237,7 +241,7 @@ fn run_repeat(
         }
         let settled = scene
             .settle
-            .is_some_and(|s| t >= s.min_time && obs.max_speed() < s.velocity_tol);
+            .is_some_and(|s| k + 1 >= MIN_SETTLE_STEPS && t >= s.min_time && obs.max_speed() < s.velocity_tol);
         if record && (k % every == every - 1 || settled || k + 1 == max_steps) {
             rep.series.push(sample(&obs, run));
         }

@@ -1,0 +1,130 @@
+//! Command-line behaviour: bad input gets one clear line and exit code 2
+//! with nothing written; a failed run never damages an earlier report; a
+//! model that panics, aborts or hangs is recorded, and the comparison goes
+//! on; `run-one` honours parameter overrides.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn surgbench(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_surgbench"))
+        .args(args)
+        .env("SURGBENCH_FAULTY_MODELS", "1")
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .expect("surgbench runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Exit code 2, one line on stderr mentioning `needle`, and `out` untouched.
+fn assert_usage_error(args: &[&str], needle: &str, out: &Path) {
+    let o = surgbench(args);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "args {args:?}: expected exit 2, stderr: {err}");
+    assert!(err.contains(needle), "args {args:?}: stderr should mention `{needle}`: {err}");
+    assert_eq!(err.trim().lines().count(), 1, "args {args:?}: one line expected: {err}");
+    assert!(!out.exists(), "args {args:?}: {} must not be written", out.display());
+}
+
+#[test]
+fn bad_input_is_a_clear_usage_error_and_writes_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("run");
+    let o = out.to_str().unwrap();
+    let base = ["run-one", "--out", o];
+    let case = |extra: &[&str], needle: &str| {
+        let mut a: Vec<&str> = base.to_vec();
+        a.extend_from_slice(extra);
+        assert_usage_error(&a, needle, &out);
+    };
+    case(&["--scenario", "nope", "--model", "faulty-panic"], "unknown scenario `nope`");
+    case(&["--scenario", "cantilever-gravity", "--model", "nope"], "unknown model `nope`");
+    case(&["--scenario", "cantilever-gravity", "--model", "faulty-panic", "--param", "lenght=1"], "no parameter `lenght`");
+    case(&["--scenario", "cantilever-gravity", "--model", "faulty-panic", "--param", "length=-0.1"], "`length`");
+    case(&["--scenario", "cantilever-gravity", "--model", "faulty-panic", "--param", "poisson_ratio=0.5"], "`poisson_ratio`");
+    case(&["--scenario", "cantilever-gravity", "--model", "faulty-panic", "--param", "length=abc"], "not a number");
+    case(&["--scenario", "cantilever-gravity", "--model", "faulty-panic", "--fidelity", "dt=0"], "`dt`");
+    case(&["--scenario", "cantilever-gravity", "--model", "faulty-panic", "--fidelity", "dt=-1e-3"], "`dt`");
+    case(&["--scenario", "cantilever-gravity", "--model", "faulty-panic", "--fidelity", "segments=2.5"], "`segments`");
+    case(&["--scenario", "cantilever-gravity", "--model", "faulty-panic", "--fidelity", "warp=1"], "unknown fidelity key `warp`");
+    // A missing required argument is clap's usage error (exit 2 too).
+    let o = surgbench(&["run-one", "--scenario", "cantilever-gravity"]);
+    assert_eq!(o.status.code(), Some(2));
+}
+
+#[test]
+fn malformed_comparison_and_csv_are_usage_errors() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("report");
+    let o = out.to_str().unwrap();
+    let bad = tmp.path().join("bad.toml");
+    std::fs::write(&bad, "name = \"x\"\nmodels = [\"der\"\n").unwrap();
+    assert_usage_error(&["run", bad.to_str().unwrap(), "--out", o], "malformed comparison TOML", &out);
+    let unknown = tmp.path().join("unknown.toml");
+    std::fs::write(&unknown, "name = \"x\"\nmodels = [\"nope\"]\n[[scenario]]\nid = \"cantilever-gravity\"\n").unwrap();
+    assert_usage_error(&["run", unknown.to_str().unwrap(), "--out", o], "unknown model `nope`", &out);
+    assert_usage_error(&["run", "no-such-comparison", "--out", o], "unknown comparison", &out);
+    // `report` on a folder whose results.csv is malformed.
+    let rep = tmp.path().join("rep");
+    std::fs::create_dir(&rep).unwrap();
+    std::fs::write(rep.join("results.csv"), "comparison,scenario\nx\n").unwrap();
+    let o = surgbench(&["report", rep.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("results.csv"), "{}", stderr(&o));
+}
+
+#[test]
+fn misbehaving_models_are_recorded_and_the_comparison_goes_on() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cmp = tmp.path().join("faulty.toml");
+    std::fs::write(
+        &cmp,
+        "name = \"faulty\"\nmodels = [\"faulty-panic\", \"faulty-abort\", \"faulty-hang\", \"faulty-nonfinite\"]\n\
+         timeout_s = 2\n[[scenario]]\nid = \"cantilever-gravity\"\nsweep = { segments = [10] }\n",
+    )
+    .unwrap();
+    let out = tmp.path().join("report");
+    let o = surgbench(&["run", cmp.to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let csv = std::fs::read_to_string(out.join("results.csv")).unwrap();
+    let row = |m: &str| csv.lines().find(|l| l.contains(&format!(",{m},"))).unwrap_or_else(|| panic!("no row for {m}: {csv}")).to_string();
+    assert!(row("faulty-panic").contains(",failed,") && row("faulty-panic").contains("panicked on purpose"), "{}", row("faulty-panic"));
+    assert!(row("faulty-abort").contains(",failed,") && row("faulty-abort").contains("SIGABRT"), "{}", row("faulty-abort"));
+    assert!(row("faulty-hang").contains(",timeout,"), "{}", row("faulty-hang"));
+    let nf = row("faulty-nonfinite");
+    assert!(nf.contains(",unstable,") && nf.contains("non-finite state at t=0.0030 s"), "{nf}");
+}
+
+#[test]
+fn a_failed_run_leaves_the_earlier_report_intact() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("report");
+    let o = out.to_str().unwrap();
+    let good = tmp.path().join("good.toml");
+    std::fs::write(
+        &good,
+        "name = \"good\"\nmodels = [\"faulty-nonfinite\"]\n[[scenario]]\nid = \"cantilever-gravity\"\nsweep = { segments = [10] }\n",
+    )
+    .unwrap();
+    let r = surgbench(&["run", good.to_str().unwrap(), "--out", o, "--quiet"]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let before = std::fs::read(out.join("results.csv")).unwrap();
+    let bad = tmp.path().join("bad.toml");
+    std::fs::write(
+        &bad,
+        "name = \"bad\"\nmodels = [\"faulty-nonfinite\"]\n[[scenario]]\nid = \"cantilever-gravity\"\nparams = { radius = -1 }\n",
+    )
+    .unwrap();
+    let r = surgbench(&["run", bad.to_str().unwrap(), "--out", o, "--quiet"]);
+    assert_eq!(r.status.code(), Some(2), "{}", stderr(&r));
+    assert_eq!(std::fs::read(out.join("results.csv")).unwrap(), before, "earlier report changed");
+    let leftovers: Vec<_> = std::fs::read_dir(tmp.path())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().starts_with('.'))
+        .collect();
+    assert!(leftovers.is_empty(), "temporary folders left behind: {leftovers:?}");
+}
