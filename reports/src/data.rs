@@ -1,0 +1,494 @@
+//! The tidy results table (`results.csv`), the run header (`summary.json`) and
+//! per-run time series (`observables.csv`): types, writers and readers.
+//!
+//! All numbers are SI (m, kg, s, N, Pa, rad) except the columns whose names say
+//! otherwise (`ms_per_step_*` in milliseconds, `peak_rss_mb` in MiB,
+//! `build_ms` in milliseconds).
+//!
+//! Numbers are written in the shortest form that reads back to the same `f64`
+//! (Rust's `Display`/`LowerExp` are round-trip exact), so `read(write(rows))`
+//! gives bit-identical values and a report re-rendered from `results.csv`
+//! alone equals the original.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::fs;
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::ReportError;
+
+/// One row per scenario x model x fidelity: what the harness measured for one run.
+///
+/// `None` means "not measured / not applicable" and is written as an empty cell.
+/// Times are in the units their names say (`ms`, `s`), everything else SI.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub struct ResultRow {
+    /// Comparison name, e.g. `"standard"`.
+    pub comparison: String,
+    /// Scenario id, e.g. `"cantilever-gravity"`.
+    pub scenario: String,
+    /// Model id, e.g. `"der"`.
+    pub model: String,
+    /// `"rod"` | `"tissue"` | `"coupled"`.
+    pub family: String,
+    /// Fidelity as given by the harness, e.g. `"segments=20;dt=0.001"` (stable order).
+    pub fidelity: String,
+    /// Scenario parameter overrides, e.g. `"length=0.3;youngs_modulus=5e10"` (`""` = defaults).
+    pub params: String,
+    /// Number of rod segments, if the fidelity sets it.
+    pub segments: Option<f64>,
+    /// Mesh refinement level (cells per side = 2^level), if the fidelity sets it.
+    pub mesh_level: Option<f64>,
+    /// Time step (s).
+    pub dt: Option<f64>,
+    /// Solver iterations per step, if the fidelity sets it.
+    pub iterations: Option<f64>,
+    /// `"ok"` | `"unstable"` | `"unsupported"` | `"failed"` | `"timeout"`.
+    pub status: String,
+    /// Unsupported reason / failure message / watchdog message (`""` if ok).
+    pub reason: String,
+    /// Why the run stopped: `"settled"` | `"time-limit"` | `"duration"` | `""`.
+    pub end: String,
+    /// Number of steps taken.
+    pub steps: Option<f64>,
+    /// Simulated time reached (s).
+    pub sim_time_s: Option<f64>,
+    /// Median wall time per step after warm-up (ms).
+    pub ms_per_step_median: Option<f64>,
+    /// 95th percentile wall time per step (ms).
+    pub ms_per_step_p95: Option<f64>,
+    /// Steps per wall-clock second (1/s).
+    pub steps_per_s: Option<f64>,
+    /// Simulated seconds per wall-clock second (dimensionless; >= 1 is real time).
+    pub real_time_factor: Option<f64>,
+    /// Mean solver iterations per step.
+    pub solver_iters_mean: Option<f64>,
+    /// Maximum solver iterations in one step.
+    pub solver_iters_max: Option<f64>,
+    /// Peak resident memory (MiB).
+    pub peak_rss_mb: Option<f64>,
+    /// Model build time (ms).
+    pub build_ms: Option<f64>,
+    /// Whether every stability watchdog stayed quiet.
+    pub stable: Option<bool>,
+    /// Name/message of the first watchdog that tripped (`""` if none).
+    pub watchdog: String,
+    /// Simulated time at which the watchdog tripped (s).
+    pub watchdog_t: Option<f64>,
+    /// Name of the scenario's headline error metric, a key of `metrics`.
+    pub primary_error: String,
+    /// This run's folder relative to the report folder (`""` if none); holds `observables.csv`.
+    pub run_dir: String,
+    /// Error metrics by name, e.g. `"tip_error_rel"`, `"rms_node_error_m"` (units in the name).
+    pub metrics: BTreeMap<String, f64>,
+}
+
+/// The page header: where, when and how a comparison ran (`summary.json`).
+#[derive(Serialize, Deserialize, Default, Debug, Clone, PartialEq)]
+#[serde(default)]
+pub struct RunInfo {
+    /// Comparison name.
+    pub comparison: String,
+    /// Date and time of the run (as the harness formats it).
+    pub date: String,
+    /// Git commit of the code that ran.
+    pub commit: String,
+    /// Machine description (CPU model, OS).
+    pub machine: String,
+    /// Cores on the machine.
+    pub cores: usize,
+    /// Threads the harness used.
+    pub threads: usize,
+    /// `rustc --version`.
+    pub rustc: String,
+    /// Versions of the crates involved, by name.
+    pub crate_versions: BTreeMap<String, String>,
+    /// The command line that produced the run.
+    pub command: String,
+    /// Whether this was a reduced ("quick") sweep.
+    pub quick: bool,
+    /// Wall time of the whole comparison (s).
+    pub wall_s: f64,
+}
+
+/// The fixed columns of `results.csv`, in file order; metric columns follow, sorted.
+pub const FIXED_COLUMNS: [&str; 28] = [
+    "comparison",
+    "scenario",
+    "model",
+    "family",
+    "fidelity",
+    "params",
+    "segments",
+    "mesh_level",
+    "dt",
+    "iterations",
+    "status",
+    "reason",
+    "end",
+    "steps",
+    "sim_time_s",
+    "ms_per_step_median",
+    "ms_per_step_p95",
+    "steps_per_s",
+    "real_time_factor",
+    "solver_iters_mean",
+    "solver_iters_max",
+    "peak_rss_mb",
+    "build_ms",
+    "stable",
+    "watchdog",
+    "watchdog_t",
+    "primary_error",
+    "run_dir",
+];
+
+/// A field of [`ResultRow`] seen as a CSV cell.
+enum Cell<'a> {
+    Text(&'a mut String),
+    Num(&'a mut Option<f64>),
+    Bool(&'a mut Option<bool>),
+}
+
+/// The cell of fixed column `i` (index into [`FIXED_COLUMNS`]).
+fn cell(row: &mut ResultRow, i: usize) -> Cell<'_> {
+    use Cell::*;
+    match i {
+        0 => Text(&mut row.comparison),
+        1 => Text(&mut row.scenario),
+        2 => Text(&mut row.model),
+        3 => Text(&mut row.family),
+        4 => Text(&mut row.fidelity),
+        5 => Text(&mut row.params),
+        6 => Num(&mut row.segments),
+        7 => Num(&mut row.mesh_level),
+        8 => Num(&mut row.dt),
+        9 => Num(&mut row.iterations),
+        10 => Text(&mut row.status),
+        11 => Text(&mut row.reason),
+        12 => Text(&mut row.end),
+        13 => Num(&mut row.steps),
+        14 => Num(&mut row.sim_time_s),
+        15 => Num(&mut row.ms_per_step_median),
+        16 => Num(&mut row.ms_per_step_p95),
+        17 => Num(&mut row.steps_per_s),
+        18 => Num(&mut row.real_time_factor),
+        19 => Num(&mut row.solver_iters_mean),
+        20 => Num(&mut row.solver_iters_max),
+        21 => Num(&mut row.peak_rss_mb),
+        22 => Num(&mut row.build_ms),
+        23 => Bool(&mut row.stable),
+        24 => Text(&mut row.watchdog),
+        25 => Num(&mut row.watchdog_t),
+        26 => Text(&mut row.primary_error),
+        27 => Text(&mut row.run_dir),
+        _ => unreachable!("FIXED_COLUMNS has 28 entries"),
+    }
+}
+
+/// Formats `v` in the shortest text that parses back to the same `f64`.
+///
+/// Plain decimals in `[1e-4, 1e15)`, exponent form (`1.5e-7`) outside it.
+pub fn format_f64(v: f64) -> String {
+    let a = v.abs();
+    if v == 0.0 || !v.is_finite() || (1e-4..1e15).contains(&a) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
+fn parse_f64(s: &str) -> Result<Option<f64>, String> {
+    let t = s.trim();
+    if t.is_empty() {
+        return Ok(None);
+    }
+    t.parse::<f64>()
+        .map(Some)
+        .map_err(|_| format!("expected a number or an empty cell, found {s:?}"))
+}
+
+fn parse_bool(s: &str) -> Result<Option<bool>, String> {
+    match s.trim().to_ascii_lowercase().as_str() {
+        "" => Ok(None),
+        "true" => Ok(Some(true)),
+        "false" => Ok(Some(false)),
+        _ => Err(format!(
+            "expected `true`, `false` or an empty cell, found {s:?}"
+        )),
+    }
+}
+
+fn csv_err(path: &Path, e: csv::Error) -> ReportError {
+    let line = e.position().map(|p| p.line()).unwrap_or(0);
+    match e.into_kind() {
+        csv::ErrorKind::Io(io) => ReportError::io(path, io),
+        kind => ReportError::parse(path, line, "(row)", format!("{kind:?}")),
+    }
+}
+
+/// Writes `rows` to `path` as the tidy `results.csv`.
+///
+/// Header: the [`FIXED_COLUMNS`] in order, then one column per metric name
+/// (union over all rows, sorted). `None` and absent metrics are empty cells.
+/// A metric named like a fixed column, or with an empty name, is refused
+/// ([`ReportError::Invalid`]) because it could not be read back unambiguously.
+pub fn write_results_csv(path: &Path, rows: &[ResultRow]) -> Result<(), ReportError> {
+    let metric_names: BTreeSet<&str> = rows
+        .iter()
+        .flat_map(|r| r.metrics.keys().map(String::as_str))
+        .collect();
+    for m in &metric_names {
+        if m.trim().is_empty() || FIXED_COLUMNS.contains(m) {
+            return Err(ReportError::Invalid {
+                path: path.to_path_buf(),
+                message: format!("metric name {m:?} is empty or clashes with a fixed column"),
+            });
+        }
+    }
+    let mut w = csv::Writer::from_path(path).map_err(|e| csv_err(path, e))?;
+    let header: Vec<&str> = FIXED_COLUMNS
+        .iter()
+        .copied()
+        .chain(metric_names.iter().copied())
+        .collect();
+    w.write_record(&header).map_err(|e| csv_err(path, e))?;
+    for row in rows {
+        let mut row = row.clone();
+        let mut rec: Vec<String> = Vec::with_capacity(header.len());
+        for i in 0..FIXED_COLUMNS.len() {
+            rec.push(match cell(&mut row, i) {
+                Cell::Text(s) => s.clone(),
+                Cell::Num(v) => v.map(format_f64).unwrap_or_default(),
+                Cell::Bool(b) => b.map(|b| b.to_string()).unwrap_or_default(),
+            });
+        }
+        for m in &metric_names {
+            rec.push(
+                row.metrics
+                    .get(*m)
+                    .copied()
+                    .map(format_f64)
+                    .unwrap_or_default(),
+            );
+        }
+        w.write_record(&rec).map_err(|e| csv_err(path, e))?;
+    }
+    w.flush().map_err(|e| ReportError::io(path, e))
+}
+
+/// Reads a `results.csv` written by [`write_results_csv`] (or by hand).
+///
+/// Columns are found by name, so their order does not matter; every fixed
+/// column must be present, and any other column is a metric (an empty cell
+/// means the metric is absent for that row). A malformed file (missing fixed
+/// column, duplicate column, non-numeric value in a numeric column, ragged
+/// row) gives a [`ReportError::Parse`] naming file, line and column.
+pub fn read_results_csv(path: &Path) -> Result<Vec<ResultRow>, ReportError> {
+    let mut rd = csv::ReaderBuilder::new()
+        .flexible(true)
+        .from_path(path)
+        .map_err(|e| csv_err(path, e))?;
+    let header: Vec<String> = rd
+        .headers()
+        .map_err(|e| csv_err(path, e))?
+        .iter()
+        .map(|h| h.trim().to_string())
+        .collect();
+    let mut seen = BTreeSet::new();
+    for h in &header {
+        if !seen.insert(h.as_str()) {
+            return Err(ReportError::parse(path, 1, h, "duplicate column"));
+        }
+    }
+    // fixed[i] = position of FIXED_COLUMNS[i] in the header.
+    let mut fixed = [0usize; FIXED_COLUMNS.len()];
+    for (i, name) in FIXED_COLUMNS.iter().enumerate() {
+        fixed[i] = header
+            .iter()
+            .position(|h| h == name)
+            .ok_or_else(|| ReportError::parse(path, 1, name, "missing required column"))?;
+    }
+    let metric_cols: Vec<(usize, &str)> = header
+        .iter()
+        .enumerate()
+        .filter(|(_, h)| !FIXED_COLUMNS.contains(&h.as_str()))
+        .map(|(j, h)| (j, h.as_str()))
+        .collect();
+
+    let mut rows = Vec::new();
+    for rec in rd.records() {
+        let rec = rec.map_err(|e| csv_err(path, e))?;
+        let line = rec.position().map(|p| p.line()).unwrap_or(0);
+        if rec.len() != header.len() {
+            let col = header
+                .get(rec.len().min(header.len().saturating_sub(1)))
+                .map(String::as_str)
+                .unwrap_or("(row)");
+            return Err(ReportError::parse(
+                path,
+                line,
+                col,
+                format!(
+                    "ragged row: {} fields, the header has {}",
+                    rec.len(),
+                    header.len()
+                ),
+            ));
+        }
+        let mut row = ResultRow::default();
+        for (i, &j) in fixed.iter().enumerate() {
+            let text = &rec[j];
+            let res = match cell(&mut row, i) {
+                Cell::Text(s) => {
+                    *s = text.to_string();
+                    Ok(())
+                }
+                Cell::Num(v) => parse_f64(text).map(|x| *v = x),
+                Cell::Bool(b) => parse_bool(text).map(|x| *b = x),
+            };
+            res.map_err(|m| ReportError::parse(path, line, FIXED_COLUMNS[i], m))?;
+        }
+        for &(j, name) in &metric_cols {
+            if let Some(v) =
+                parse_f64(&rec[j]).map_err(|m| ReportError::parse(path, line, name, m))?
+            {
+                row.metrics.insert(name.to_string(), v);
+            }
+        }
+        rows.push(row);
+    }
+    Ok(rows)
+}
+
+/// Writes `info` as pretty JSON (`summary.json`).
+pub fn write_run_info(path: &Path, info: &RunInfo) -> Result<(), ReportError> {
+    let text = serde_json::to_string_pretty(info).map_err(|e| ReportError::Json {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    fs::write(path, text + "\n").map_err(|e| ReportError::io(path, e))
+}
+
+/// Reads `summary.json` as a [`RunInfo`]; fields it lacks take their defaults
+/// and fields it has beyond [`RunInfo`]'s are ignored (the harness's summary
+/// may carry more).
+pub fn read_run_info(path: &Path) -> Result<RunInfo, ReportError> {
+    let text = fs::read_to_string(path).map_err(|e| ReportError::io(path, e))?;
+    serde_json::from_str(&text).map_err(|e| ReportError::Json {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
+}
+
+/// The columns of a per-run `observables.csv`, in file order.
+pub const SERIES_COLUMNS: [&str; 12] = [
+    "t", "tip_x", "tip_y", "tip_z", "hand_fx", "hand_fy", "hand_fz", "hand_tx", "hand_ty",
+    "hand_tz", "energy", "error",
+];
+
+/// One run's time series (`<run_dir>/observables.csv`), SI units.
+///
+/// All vectors have the length of `t`. An empty cell, or a column the file
+/// lacks (only `t` is required), reads as `NaN`: "not recorded", which plots skip.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Series {
+    /// Simulated time (s).
+    pub t: Vec<f64>,
+    /// Tip position (m).
+    pub tip_x: Vec<f64>,
+    /// Tip position (m).
+    pub tip_y: Vec<f64>,
+    /// Tip position (m).
+    pub tip_z: Vec<f64>,
+    /// Reaction force at the operator's hand (N).
+    pub hand_fx: Vec<f64>,
+    /// Reaction force at the operator's hand (N).
+    pub hand_fy: Vec<f64>,
+    /// Reaction force at the operator's hand (N).
+    pub hand_fz: Vec<f64>,
+    /// Reaction torque at the operator's hand (N m).
+    pub hand_tx: Vec<f64>,
+    /// Reaction torque at the operator's hand (N m).
+    pub hand_ty: Vec<f64>,
+    /// Reaction torque at the operator's hand (N m).
+    pub hand_tz: Vec<f64>,
+    /// Total energy (J).
+    pub energy: Vec<f64>,
+    /// The scenario's primary error at that time (unit of the metric).
+    pub error: Vec<f64>,
+}
+
+impl Series {
+    fn column_mut(&mut self, i: usize) -> &mut Vec<f64> {
+        match i {
+            0 => &mut self.t,
+            1 => &mut self.tip_x,
+            2 => &mut self.tip_y,
+            3 => &mut self.tip_z,
+            4 => &mut self.hand_fx,
+            5 => &mut self.hand_fy,
+            6 => &mut self.hand_fz,
+            7 => &mut self.hand_tx,
+            8 => &mut self.hand_ty,
+            9 => &mut self.hand_tz,
+            10 => &mut self.energy,
+            _ => &mut self.error,
+        }
+    }
+}
+
+/// Reads a per-run `observables.csv` into a [`Series`].
+///
+/// Columns are found by name; `t` is required and must be numeric in every
+/// row, other known columns may be absent or empty (read as `NaN`), unknown
+/// columns are ignored. Errors name file, line and column.
+pub fn read_series(path: &Path) -> Result<Series, ReportError> {
+    let mut rd = csv::ReaderBuilder::new()
+        .flexible(true)
+        .from_path(path)
+        .map_err(|e| csv_err(path, e))?;
+    let header: Vec<String> = rd
+        .headers()
+        .map_err(|e| csv_err(path, e))?
+        .iter()
+        .map(|h| h.trim().to_string())
+        .collect();
+    let pos: Vec<Option<usize>> = SERIES_COLUMNS
+        .iter()
+        .map(|c| header.iter().position(|h| h == c))
+        .collect();
+    if pos[0].is_none() {
+        return Err(ReportError::parse(path, 1, "t", "missing required column"));
+    }
+    let mut s = Series::default();
+    for rec in rd.records() {
+        let rec = rec.map_err(|e| csv_err(path, e))?;
+        let line = rec.position().map(|p| p.line()).unwrap_or(0);
+        if rec.len() != header.len() {
+            return Err(ReportError::parse(
+                path,
+                line,
+                "(row)",
+                format!(
+                    "ragged row: {} fields, the header has {}",
+                    rec.len(),
+                    header.len()
+                ),
+            ));
+        }
+        for (i, p) in pos.iter().enumerate() {
+            let v = match p {
+                Some(j) => parse_f64(&rec[*j])
+                    .map_err(|m| ReportError::parse(path, line, SERIES_COLUMNS[i], m))?,
+                None => None,
+            };
+            if i == 0 && v.is_none() {
+                return Err(ReportError::parse(path, line, "t", "empty time"));
+            }
+            s.column_mut(i).push(v.unwrap_or(f64::NAN));
+        }
+    }
+    Ok(s)
+}

@@ -1,0 +1,254 @@
+//! `render` on a small synthetic comparison: two scenarios, ok, unstable,
+//! failed and unsupported runs. Checks the files, what the pages say, and
+//! that rendering is deterministic and reproducible from `results.csv`.
+
+mod common;
+
+use std::fs;
+use std::path::Path;
+
+use surgbench_reports::{read_results_csv, render, render_dir, write_results_csv, write_run_info};
+
+fn read(p: &Path) -> String {
+    fs::read_to_string(p).unwrap_or_else(|e| panic!("reading {}: {e}", p.display()))
+}
+
+/// Renders the synthetic set into a fresh folder; set `SURGBENCH_KEEP_REPORT=dir`
+/// to also keep a copy for looking at the pictures.
+fn rendered() -> (tempfile::TempDir, Vec<std::path::PathBuf>) {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let rows = common::rows();
+    write_results_csv(&dir.join("results.csv"), &rows).unwrap();
+    write_run_info(&dir.join("summary.json"), &common::info()).unwrap();
+    common::write_series(dir, &rows);
+    let files = render(dir, &rows, &common::info()).unwrap();
+    if let Ok(keep) = std::env::var("SURGBENCH_KEEP_REPORT") {
+        let keep = Path::new(&keep);
+        fs::create_dir_all(keep.join("plots")).unwrap();
+        for f in &files {
+            let rel = f.strip_prefix(dir).unwrap();
+            fs::copy(f, keep.join(rel)).unwrap();
+        }
+    }
+    (tmp, files)
+}
+
+#[test]
+fn writes_every_expected_file_non_empty() {
+    let (tmp, files) = rendered();
+    let dir = tmp.path();
+    let expected = [
+        "plots/cantilever-gravity-pareto",
+        "plots/cantilever-gravity-convergence",
+        "plots/cantilever-gravity-error-time",
+        "plots/cantilever-gravity-stability",
+        "plots/lame-tube--pressure_2000-pareto",
+        "plots/lame-tube--pressure_2000-convergence",
+    ];
+    for stem in expected {
+        for ext in ["svg", "png"] {
+            let p = dir.join(format!("{stem}.{ext}"));
+            assert!(
+                files.contains(&p),
+                "{} not in the returned list {files:?}",
+                p.display()
+            );
+            let bytes = fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+            assert!(
+                bytes.len() > 1000,
+                "{} has only {} bytes",
+                p.display(),
+                bytes.len()
+            );
+            if ext == "png" {
+                assert_eq!(
+                    &bytes[..8],
+                    b"\x89PNG\r\n\x1a\n",
+                    "{} is not a PNG",
+                    p.display()
+                );
+            } else {
+                let s = String::from_utf8_lossy(&bytes);
+                assert!(
+                    s.contains("<svg") && s.contains("</svg>"),
+                    "{} is not an SVG",
+                    p.display()
+                );
+            }
+        }
+    }
+    // lame-tube varies only the mesh level (one dt): no stability map; fem has no run_dir: no time series.
+    for stem in [
+        "lame-tube--pressure_2000-stability",
+        "lame-tube--pressure_2000-error-time",
+    ] {
+        assert!(
+            !dir.join(format!("plots/{stem}.svg")).exists(),
+            "{stem} should not exist"
+        );
+    }
+    for page in ["report.md", "index.html"] {
+        assert!(files.contains(&dir.join(page)), "{page} not returned");
+        assert!(read(&dir.join(page)).len() > 1000, "{page} is short");
+    }
+    assert_eq!(files.len(), 2 * expected.len() + 2, "returned: {files:?}");
+}
+
+#[test]
+fn pages_show_reasons_orders_and_header() {
+    let (tmp, _) = rendered();
+    let md = read(&tmp.path().join("report.md"));
+    let html = read(&tmp.path().join("index.html"));
+    // Reasons appear where the numbers would be (markdown escapes `_`, HTML escapes quotes).
+    for reason in [
+        common::UNSUPPORTED_REASON,
+        common::UNSTABLE_REASON,
+        common::TISSUE_UNSUPPORTED,
+    ] {
+        assert!(md.contains(reason), "report.md lacks reason {reason:?}");
+        assert!(html.contains(reason), "index.html lacks reason {reason:?}");
+    }
+    assert!(
+        html.contains(
+            "build failed: segments=5 is below the minimum of 8, &quot;rod too coarse&quot;"
+        ),
+        "index.html lacks the escaped failure reason"
+    );
+    // Orders: der exactly 2 in segments, pbd-rod exactly 1, fem 2 in cells per side.
+    for needle in [
+        "der: p = 2.00 vs segments",
+        "pbd-rod: p = 1.00 vs segments",
+        "fem: p = 2.00 vs cells per side (2^mesh\\_level)",
+    ] {
+        assert!(md.contains(needle), "report.md lacks {needle:?}");
+    }
+    assert!(
+        html.contains("fem: p = 2.00 vs cells per side (2^mesh_level)"),
+        "index.html lacks the fem order"
+    );
+    // Header and the quick-run warning.
+    for needle in ["0123abcd", "test machine", "2 / 1", "quick run"] {
+        assert!(md.contains(needle), "report.md lacks {needle:?}");
+    }
+    // Best values bold: der's finest ok error 0.3/80^2 = 4.69e-5.
+    assert!(
+        md.contains("**4.69e-5**"),
+        "report.md does not bold the lowest error 4.69e-5"
+    );
+    // Images embedded by relative path.
+    assert!(
+        html.contains("<img src=\"plots/cantilever-gravity-pareto.svg\""),
+        "no pareto img"
+    );
+    assert!(
+        md.contains("](plots/cantilever-gravity-convergence.svg)"),
+        "no convergence image in md"
+    );
+    // What the plots leave out is said: the run without a time series, unsupported runs.
+    assert!(
+        md.contains("unsupported runs are not drawn"),
+        "stability note missing"
+    );
+    assert!(
+        html.contains("<td class=\"warn\">unsupported</td>"),
+        "unsupported status not flagged"
+    );
+}
+
+#[test]
+fn missing_time_series_is_noted_not_fatal() {
+    let tmp = tempfile::tempdir().unwrap();
+    let rows = common::rows();
+    // No observables.csv written at all.
+    let files = render(tmp.path(), &rows, &common::info()).unwrap();
+    assert!(
+        !tmp.path()
+            .join("plots/cantilever-gravity-error-time.svg")
+            .exists()
+    );
+    assert!(files.iter().any(|f| f.ends_with("report.md")));
+    let md = read(&tmp.path().join("report.md"));
+    assert!(
+        md.contains("Error over time: no curve for der segments=80;dt=0.0005"),
+        "missing series not noted; report.md:\n{md}"
+    );
+}
+
+#[test]
+fn deterministic_and_reproducible_from_csv() {
+    let (tmp, files) = rendered();
+    let dir = tmp.path();
+    let snapshot: Vec<(std::path::PathBuf, Vec<u8>)> = files
+        .iter()
+        .map(|f| (f.clone(), fs::read(f).unwrap()))
+        .collect();
+    // Re-render from the files alone (what `surgbench report DIR` does).
+    let again = render_dir(dir).unwrap();
+    assert_eq!(again, files, "a re-render writes a different set of files");
+    for (f, bytes) in &snapshot {
+        let now = fs::read(f).unwrap();
+        assert!(
+            now == *bytes,
+            "{} differs after re-rendering from results.csv",
+            f.display()
+        );
+    }
+    assert_eq!(
+        read_results_csv(&dir.join("results.csv")).unwrap(),
+        common::rows()
+    );
+}
+
+#[test]
+fn stale_plots_are_removed_and_empty_input_renders() {
+    let (tmp, _) = rendered();
+    let dir = tmp.path();
+    let files = render(dir, &[], &Default::default()).unwrap();
+    assert_eq!(files.len(), 2, "only the pages for no rows: {files:?}");
+    let left: Vec<_> = fs::read_dir(dir.join("plots")).unwrap().collect();
+    assert!(left.is_empty(), "stale plots left behind: {left:?}");
+    assert!(read(&dir.join("report.md")).contains("0 runs"));
+}
+
+#[test]
+fn long_names_and_colliding_stems_render() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut rows = Vec::new();
+    for params in [
+        "length=0.3;youngs_modulus=5e10;radius=4.5e-4",
+        "length=0.3 youngs_modulus=5e10 radius=4.5e-4",
+    ] {
+        for r in common::rows().into_iter().filter(|r| r.model == "der") {
+            rows.push(surgbench_reports::ResultRow {
+                scenario: "tortuous-coronary-multi-point-contact-long-name".into(),
+                params: params.into(),
+                fidelity: format!("{};iterations=10;extra_knob=abc", r.fidelity),
+                ..r
+            });
+        }
+    }
+    let files = render(tmp.path(), &rows, &common::info()).unwrap();
+    let stems: Vec<String> = files
+        .iter()
+        .filter(|f| f.extension().is_some_and(|e| e == "svg"))
+        .map(|f| f.file_stem().unwrap().to_string_lossy().into_owned())
+        .collect();
+    // Two parameter sets whose slugs collide: two distinct, bounded file names.
+    let pareto: Vec<&String> = stems.iter().filter(|s| s.ends_with("-pareto")).collect();
+    assert_eq!(pareto.len(), 2, "{stems:?}");
+    assert_ne!(pareto[0], pareto[1]);
+    for s in &pareto {
+        assert!(
+            s.starts_with("tortuous-coronary-multi-point") && s.len() <= 100,
+            "stem {s:?}"
+        );
+    }
+    if let Ok(keep) = std::env::var("SURGBENCH_KEEP_REPORT") {
+        let keep = Path::new(&keep).join("long");
+        fs::create_dir_all(&keep).unwrap();
+        for f in &files {
+            fs::copy(f, keep.join(f.file_name().unwrap())).unwrap();
+        }
+    }
+}
