@@ -96,7 +96,7 @@ fn same_inputs_give_bit_identical_results() {
 fn rigid_motion_of_the_scene_moves_the_answer_rigidly() {
     let iso = Isometry3::from_parts(
         Translation3::new(0.3, -0.2, 0.5),
-        UnitQuaternion::from_axis_angle(&Vector3::new(1.0, 2.0, 3.0).normalize().into(), 0.7),
+        UnitQuaternion::from_axis_angle(&nalgebra::Unit::new_normalize(Vector3::new(1.0, 2.0, 3.0)), 0.7),
     );
     for r in registry::models() {
         for (sid, scene) in supported(r.factory) {

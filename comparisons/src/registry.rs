@@ -40,11 +40,13 @@ pub fn models() -> Vec<Registered> {
 
 /// Every scenario, in report order.
 pub fn scenarios() -> Vec<&'static dyn Scenario> {
-    vec![
+    let mut v: Vec<&'static dyn Scenario> = vec![
         &scenarios::rod::CantileverGravity,
         &scenarios::rod::CantileverTipLoad,
         &scenarios::rod::TorqueTransfer,
-    ]
+    ];
+    v.extend(scenarios::vessel::all());
+    v
 }
 
 /// Look a model up by id.

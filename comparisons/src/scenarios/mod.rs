@@ -1,3 +1,4 @@
 //! The scenario catalogue.
 
 pub mod rod;
+pub mod vessel;

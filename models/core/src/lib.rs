@@ -20,11 +20,13 @@ pub mod contact;
 pub mod error;
 pub mod fidelity;
 pub mod frames;
+pub mod haptic;
 pub mod mesh;
 pub mod model;
 pub mod observation;
 pub mod scene;
 pub mod sdf;
+pub mod vessel;
 
 pub use error::{BuildError, SimError, Unsupported};
 pub use fidelity::{Fidelity, FidelityKey};

@@ -1,0 +1,1 @@
+//! The fixed-rate haptic loop runner (work in progress).

@@ -1,0 +1,1 @@
+//! Haptic device interface and recorded sessions (work in progress).

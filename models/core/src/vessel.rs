@@ -1,0 +1,1 @@
+//! Procedural vessels and vessel mesh loading (work in progress).
