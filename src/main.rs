@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use surgbench_comparisons::batch::{self, BatchError, BatchOptions};
 use surgbench_comparisons::comparison::Comparison;
+use surgbench_comparisons::gate;
 use surgbench_comparisons::runner::{self, RunOptions};
 use surgbench_comparisons::scenario::{Params, parse_overrides};
 use surgbench_comparisons::{UsageError, registry};
@@ -88,6 +89,33 @@ enum Cmd {
     Report {
         /// Report folder holding results.csv.
         dir: PathBuf,
+    },
+    /// CI performance gate: instructions per step under valgrind against
+    /// benches/gate-baseline.json; fails past the margin in benches/gate.toml.
+    Gate {
+        /// Record the current counts as the new baseline (on purpose!).
+        #[arg(long)]
+        update: bool,
+        /// Gate configuration.
+        #[arg(long, default_value = "benches/gate.toml")]
+        config: PathBuf,
+        /// Baseline file.
+        #[arg(long, default_value = "benches/gate-baseline.json")]
+        baseline: PathBuf,
+    },
+    /// (internal) The workload the gate counts under valgrind.
+    #[command(hide = true)]
+    GateWorkload {
+        #[arg(long)]
+        model: String,
+        #[arg(long)]
+        scenario: String,
+        #[arg(long = "param")]
+        params: Vec<String>,
+        #[arg(long = "fidelity")]
+        fidelity: Vec<String>,
+        #[arg(long)]
+        steps: usize,
     },
 }
 
@@ -296,13 +324,55 @@ fn main() -> ExitCode {
             if !csv.is_file() {
                 return Err(Failure::Usage(format!("{} has no results.csv", dir.display())));
             }
-            let rows = surgbench_reports::read_results_csv(&csv).map_err(|e| Failure::Usage(e.to_string()))?;
-            let info: surgbench_reports::RunInfo = std::fs::read_to_string(dir.join("summary.json"))
-                .ok()
-                .and_then(|s| serde_json::from_str(&s).ok())
-                .unwrap_or_default();
-            let files = surgbench_reports::render(&dir, &rows, &info).map_err(|e| Failure::Runtime(e.to_string()))?;
+            let files = surgbench_reports::render_dir(&dir).map_err(|e| match e {
+                surgbench_reports::ReportError::Io { .. } | surgbench_reports::ReportError::Plot { .. } => Failure::Runtime(e.to_string()),
+                _ => Failure::Usage(e.to_string()),
+            })?;
             println!("rendered {} files into {}", files.len(), dir.display());
+            Ok(())
+        })(),
+        Cmd::Gate { update, config, baseline } => (|| {
+            let cfg = gate::load_config(&config)?;
+            let exe = std::env::current_exe().map_err(|e| Failure::Runtime(format!("cannot find own executable: {e}")))?;
+            let verdicts = gate::run_gate(&exe, &cfg, &baseline, update).map_err(Failure::Runtime)?;
+            println!("{:<60} {:>16} {:>16} {:>8}", "workload", "instr/step", "baseline", "change");
+            let mut failed = 0;
+            for v in &verdicts {
+                let (b, ch) = match v.baseline {
+                    Some(b) => (format!("{b:.0}"), format!("{:+.2}%", 100.0 * (v.measured / b - 1.0))),
+                    None => ("none".into(), "new".into()),
+                };
+                println!("{:<60} {:>16.0} {:>16} {:>8} {}", v.key, v.measured, b, ch, if v.pass { "ok" } else { "FAIL" });
+                failed += usize::from(!v.pass);
+            }
+            if update {
+                println!("baseline written to {}", baseline.display());
+                Ok(())
+            } else if failed > 0 {
+                Err(Failure::Runtime(format!(
+                    "{failed} workload(s) beyond the {:.0}% margin or without a baseline; if the change is intended, refresh with `surgbench gate --update`",
+                    cfg.margin * 100.0
+                )))
+            } else {
+                println!("gate passed ({} workloads, margin {:.0}%)", verdicts.len(), cfg.margin * 100.0);
+                Ok(())
+            }
+        })(),
+        Cmd::GateWorkload {
+            model,
+            scenario,
+            params,
+            fidelity,
+            steps,
+        } => (|| {
+            let w = gate::Workload {
+                model,
+                scenario,
+                params: parse_overrides(&params)?.into_iter().collect(),
+                fidelity: Fidelity::parse_pairs(&fidelity).map_err(|e| Failure::Usage(e.0))?.pairs().into_iter().collect(),
+                steps,
+            };
+            gate::run_workload(&w, steps)?;
             Ok(())
         })(),
     };

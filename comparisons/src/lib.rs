@@ -9,6 +9,7 @@ pub mod batch;
 pub mod comparison;
 pub mod elastica;
 pub mod faulty;
+pub mod gate;
 pub mod haptic;
 pub mod registry;
 pub mod runner;

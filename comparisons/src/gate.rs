@@ -1,0 +1,197 @@
+//! The CI performance gate: instruction counts under valgrind (callgrind)
+//! are deterministic run to run on a given CPU type and binary, unlike
+//! wall-clock time on a shared 2-core machine. Each workload (a model on a
+//! scenario at a fixed fidelity) is counted at `steps` and `2 steps`; the
+//! difference divided by `steps` is the cost of one step, free of build and
+//! start-up cost. The gate fails when a workload costs more than
+//! `(1 + margin)` times its committed baseline.
+
+use crate::registry;
+use crate::scenario::{Params, UsageError};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::process::Command;
+use surgbench_core::Fidelity;
+
+/// One gated workload.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Workload {
+    /// Model id.
+    pub model: String,
+    /// Scenario id.
+    pub scenario: String,
+    /// Parameter overrides.
+    #[serde(default)]
+    pub params: BTreeMap<String, f64>,
+    /// Fidelity knobs.
+    #[serde(default)]
+    pub fidelity: BTreeMap<String, f64>,
+    /// Steps counted (the gate also counts twice as many).
+    pub steps: usize,
+}
+
+impl Workload {
+    /// Stable key: `model/scenario/fidelity`.
+    pub fn key(&self) -> String {
+        let f: Vec<String> = self.fidelity.iter().map(|(k, v)| format!("{k}={v}")).collect();
+        format!("{}/{}/{}", self.model, self.scenario, f.join(";"))
+    }
+}
+
+/// `benches/gate.toml`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GateConfig {
+    /// Allowed relative growth of instructions per step (e.g. 0.05).
+    pub margin: f64,
+    /// Workloads.
+    pub workload: Vec<Workload>,
+}
+
+/// `benches/gate-baseline.json`: instructions per step by workload key.
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+pub struct Baseline {
+    /// CPU model the counts were taken on (counts are tied to it).
+    pub cpu: String,
+    /// Instructions per step.
+    pub instructions_per_step: BTreeMap<String, f64>,
+}
+
+/// Load the gate configuration.
+pub fn load_config(path: &Path) -> Result<GateConfig, UsageError> {
+    let text = std::fs::read_to_string(path).map_err(|e| UsageError(format!("cannot read {}: {e}", path.display())))?;
+    let c: GateConfig = toml::from_str(&text).map_err(|e| UsageError(format!("{}: {}", path.display(), e.message())))?;
+    if !(c.margin >= 0.0) {
+        return Err(UsageError(format!("{}: margin must be >= 0", path.display())));
+    }
+    for w in &c.workload {
+        registry::model(&w.model)?;
+        registry::scenario(&w.scenario)?;
+        if w.steps == 0 {
+            return Err(UsageError(format!("{}: workload {} has steps = 0", path.display(), w.key())));
+        }
+    }
+    Ok(c)
+}
+
+/// CPU model name (from /proc/cpuinfo).
+pub fn cpu_model() -> String {
+    std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| s.lines().find(|l| l.starts_with("model name")).map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string()))
+        .unwrap_or_else(|| "unknown".into())
+}
+
+/// Build the workload's model and take `steps` steps (what valgrind counts).
+pub fn run_workload(w: &Workload, steps: usize) -> Result<(), UsageError> {
+    let sc = registry::scenario(&w.scenario)?;
+    let f = registry::model(&w.model)?;
+    let overrides: Vec<(String, f64)> = w.params.iter().map(|(k, v)| (k.clone(), *v)).collect();
+    let params = Params::resolve(sc.id(), sc.params(), &overrides)?;
+    let run = sc.instantiate(&params)?;
+    let mut fid = Fidelity::default();
+    for (k, v) in &w.fidelity {
+        fid.set(k, *v).map_err(|e| UsageError(e.0))?;
+    }
+    let fid = f.default_fidelity(run.scene()).merged(&fid);
+    let mut m = f.build(run.scene(), &fid).map_err(|e| UsageError(format!("{}: {e}", w.key())))?;
+    let dt = m.dt();
+    for k in 0..steps {
+        let cmd = run.scene().control.command_at((k + 1) as f64 * dt);
+        m.step(dt, &cmd).map_err(|e| UsageError(format!("{}: {e}", w.key())))?;
+    }
+    Ok(())
+}
+
+/// Count instructions of `exe gate-workload ... --steps n` under callgrind.
+fn count(exe: &Path, w: &Workload, n: usize) -> Result<f64, String> {
+    let tmp = std::env::temp_dir().join(format!("surgbench-callgrind-{}-{n}.out", std::process::id()));
+    let mut cmd = Command::new("valgrind");
+    cmd.arg("--tool=callgrind")
+        .arg(format!("--callgrind-out-file={}", tmp.display()))
+        .arg(exe)
+        .arg("gate-workload")
+        .arg("--model")
+        .arg(&w.model)
+        .arg("--scenario")
+        .arg(&w.scenario)
+        .arg("--steps")
+        .arg(n.to_string());
+    for (k, v) in &w.params {
+        cmd.arg("--param").arg(format!("{k}={v}"));
+    }
+    for (k, v) in &w.fidelity {
+        cmd.arg("--fidelity").arg(format!("{k}={v}"));
+    }
+    cmd.env("RAYON_NUM_THREADS", "1");
+    let out = cmd.output().map_err(|e| format!("cannot run valgrind (is it installed?): {e}"))?;
+    if !out.status.success() {
+        return Err(format!(
+            "valgrind run of {} failed: {}",
+            w.key(),
+            String::from_utf8_lossy(&out.stderr).lines().last().unwrap_or("")
+        ));
+    }
+    let text = std::fs::read_to_string(&tmp).map_err(|e| format!("no callgrind output: {e}"))?;
+    let _ = std::fs::remove_file(&tmp);
+    text.lines()
+        .find_map(|l| l.strip_prefix("summary:").or_else(|| l.strip_prefix("totals:")))
+        .and_then(|s| s.split_whitespace().next())
+        .and_then(|s| s.parse::<f64>().ok())
+        .ok_or_else(|| "callgrind output has no summary line".into())
+}
+
+/// One workload's verdict.
+#[derive(Debug, Clone)]
+pub struct Verdict {
+    /// Workload key.
+    pub key: String,
+    /// Measured instructions per step.
+    pub measured: f64,
+    /// Baseline, if recorded.
+    pub baseline: Option<f64>,
+    /// Within the margin (or no baseline yet).
+    pub pass: bool,
+}
+
+/// Count every workload; compare with the baseline (or write it).
+pub fn run_gate(exe: &Path, cfg: &GateConfig, baseline_path: &Path, update: bool) -> Result<Vec<Verdict>, String> {
+    let base: Baseline = match std::fs::read_to_string(baseline_path) {
+        Ok(t) => serde_json::from_str(&t).map_err(|e| format!("{}: {e}", baseline_path.display()))?,
+        Err(_) => Baseline::default(),
+    };
+    let cpu = cpu_model();
+    if !update && !base.cpu.is_empty() && base.cpu != cpu {
+        return Err(format!(
+            "baseline was recorded on `{}` but this CPU is `{cpu}`: instruction counts are not comparable; refresh with `surgbench gate --update`",
+            base.cpu
+        ));
+    }
+    let mut verdicts = Vec::new();
+    let mut new = Baseline {
+        cpu: cpu.clone(),
+        instructions_per_step: BTreeMap::new(),
+    };
+    for w in &cfg.workload {
+        let a = count(exe, w, w.steps)?;
+        let b = count(exe, w, 2 * w.steps)?;
+        let per_step = (b - a) / w.steps as f64;
+        let key = w.key();
+        let old = base.instructions_per_step.get(&key).copied();
+        let pass = update || old.is_some_and(|o| per_step <= o * (1.0 + cfg.margin));
+        new.instructions_per_step.insert(key.clone(), per_step);
+        verdicts.push(Verdict {
+            key,
+            measured: per_step,
+            baseline: old,
+            pass,
+        });
+    }
+    if update {
+        let json = serde_json::to_string_pretty(&new).map_err(|e| e.to_string())?;
+        std::fs::write(baseline_path, json + "\n").map_err(|e| format!("cannot write {}: {e}", baseline_path.display()))?;
+    }
+    Ok(verdicts)
+}
