@@ -25,7 +25,7 @@ macro_rules! register {
 
 /// Every registered model, in report order.
 pub fn models() -> Vec<Registered> {
-    let mut v = register![];
+    let mut v = register![surgbench_chainmail::ChainmailFactory];
     if std::env::var("SURGBENCH_FAULTY_MODELS").as_deref() == Ok("1") {
         use crate::faulty;
         for f in [&faulty::PANIC, &faulty::ABORT, &faulty::HANG, &faulty::NONFINITE] {
