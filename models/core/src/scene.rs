@@ -443,7 +443,8 @@ impl Scene {
                 Body::Tissue(t) => {
                     t.mesh.validate()?;
                     let m = &t.material;
-                    if !(m.youngs_modulus > 0.0) || !(m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5) || !(m.density > 0.0) {
+                    let ok = m.youngs_modulus > 0.0 && m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5 && m.density > 0.0;
+                    if !ok {
                         return Err(format!("bad tissue material {m:?}"));
                     }
                 }
