@@ -25,7 +25,12 @@ macro_rules! register {
 
 /// Every registered model, in report order.
 pub fn models() -> Vec<Registered> {
-    let mut v = register![surgbench_chainmail::ChainmailFactory];
+    let mut v = register![
+        surgbench_der::DerFactory,
+        surgbench_chainmail::ChainmailFactory,
+        surgbench_pbd::PbdRodFactory,
+        surgbench_pbd::PbdTissueFactory,
+    ];
     if std::env::var("SURGBENCH_FAULTY_MODELS").as_deref() == Ok("1") {
         use crate::faulty;
         for f in [&faulty::PANIC, &faulty::ABORT, &faulty::HANG, &faulty::NONFINITE] {

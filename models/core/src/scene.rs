@@ -32,8 +32,12 @@ pub struct RodSection {
     pub poisson_ratio: f64,
     /// Density (kg/m^3).
     pub density: f64,
-    /// Natural curvature in the material frame `(kappa_1, kappa_2)` (1/m):
-    /// a pre-shaped J or angled tip. Zero for a straight rod.
+    /// Natural curvature (1/m): components `(kappa_1, kappa_2)` of the rest
+    /// Darboux vector on the material directors `d1`, `d2` (Kirchhoff
+    /// convention, `t' = Omega x t`): a positive `kappa_1` turns the tangent
+    /// towards `-d2`, a positive `kappa_2` towards `+d1`. A pre-shaped J or
+    /// angled tip. Zero for a straight rod. (Bergou et al. 2008 write the
+    /// material curvature as `(Omega . d2, -Omega . d1)`; rod models map it.)
     pub rest_curvature: [f64; 2],
 }
 

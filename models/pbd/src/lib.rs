@@ -1,1 +1,38 @@
-//! Position-based dynamics: Cosserat-PBD rod and tetrahedral tissue (work in progress).
+//! # surgbench-pbd: position-based dynamics models
+//!
+//! Two models of what most interactive surgical simulators ship, both solved
+//! with XPBD compliance (Macklin, Müller & Chentanez 2016) so that material
+//! stiffness does not depend on the time step or iteration count once the
+//! iteration has converged:
+//!
+//! * [`PbdRodFactory`] (`pbd-rod`): the position-and-orientation based Cosserat
+//!   rod of Kugelstadt & Schömer 2016, with vessel contact and position-level
+//!   Coulomb friction (Macklin et al. 2014);
+//! * [`PbdTissueFactory`] (`pbd-tissue`): tetrahedral tissue with edge-distance
+//!   and tetrahedral volume constraints, and optional hash-table local
+//!   activation of the box around the tool.
+//!
+//! Units are SI throughout (m, kg, s, N, Pa, rad).
+//!
+//! ```
+//! use surgbench_core::{ModelFactory, RodBody, Scene, Fidelity, Vec3, DeviceCommand};
+//! use surgbench_pbd::PbdRodFactory;
+//! let mut scene = Scene::empty("sag");
+//! scene.bodies.push(RodBody::uniform(0.1, 5e-4, 5e10, 0.3, 6450.0).into());
+//! scene.gravity = Vec3::new(0.0, 0.0, -9.81);
+//! let mut fid = Fidelity::default();
+//! fid.segments = Some(10);
+//! let mut model = PbdRodFactory.build(&scene, &fid).unwrap();
+//! model.step(1e-3, &DeviceCommand::default()).unwrap();
+//! assert!(model.observe().rods[0].tip().z < 0.0);
+//! ```
+
+pub mod hash;
+pub mod mesh;
+pub mod rod;
+pub mod tissue;
+
+pub use hash::BoxHash;
+pub use mesh::block_tet_mesh;
+pub use rod::{PbdRod, PbdRodFactory, RodSettings};
+pub use tissue::{PbdTissue, PbdTissueFactory, TissueSettings, project_volume, tet_volume, tet_volume_gradients};

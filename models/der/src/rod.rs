@@ -1,0 +1,1048 @@
+//! [`DerRod`]: the discrete elastic rod as a plain library object (state,
+//! loads, implicit time stepping, statics, contact, observation). The
+//! [`crate::DerModel`] wraps it for the harness; other crates (FEM needle
+//! coupling) can use it directly. SI units throughout.
+//!
+//! # Degrees of freedom
+//! `segments + 2` nodes and one twist angle per edge, interleaved as
+//! `q = [x_0, theta_0, x_1, theta_1, ..., x_{n-1}]` (4 per node, `4n - 1` in
+//! all) so that the Hessian is banded with half-bandwidth 10. Node 0 sits one
+//! edge *behind* the clamp (a ghost edge), node 1 at the clamp point; both
+//! nodes and the ghost twist `theta_0` are prescribed by the clamp, which
+//! gives the clamped end its bending moment and second-order convergence.
+//!
+//! # Time stepping
+//! Backward Euler (default) or Newmark `beta = 1/4, gamma = 1/2`, each step a
+//! full Newton solve of the incremental potential
+//! `Phi(q) = inertia(q) + E(q) - F . q` with the analytic Hessian (symmetric
+//! part, see [`crate::energy`]), the banded Cholesky of [`crate::band`]
+//! (shifted when indefinite) and a backtracking (Armijo) line search on
+//! `Phi`. Reference frames are parallel-transported in time from the start of
+//! the step to every Newton iterate (DER section 5). Twist is quasi-static by
+//! default (no rotational inertia: `theta` is in equilibrium every step,
+//! DER section 7.1), or dynamic with inertia `rho J |e|`.
+//!
+//! # Loads
+//! Gravity on lumped node masses (half of each adjacent edge's `rho A |e|`;
+//! the ghost edge is massless), a dead tip force on the last node, a dead tip
+//! torque: its component along the last tangent acts on the last twist angle,
+//! the transverse part as a force couple `f = tau_perp x e / |e|^2` on the
+//! last edge's two nodes (evaluated at the current configuration; its
+//! configuration dependence is left out of the Newton matrix, so a large
+//! transverse torque converges linearly), and optional per-node dead forces
+//! ([`DerRod::set_node_force`], e.g. for coupling).
+//!
+//! # Contact
+//! Only scenes with a vessel pay for it. Inside the Newton solve every node
+//! past the margin surface (`phi(x) + margin = d > 0`) feels a stiff normal
+//! penalty `k d^2 / 2` (`k = 10 max EA/|e|`, with a C2 cubic onset over
+//! `1e-5 L`; Gauss-Newton Hessian `k n n^T`),
+//! so pushes against the wall are resolved by the elastic solve (a pure
+//! post-step projection flattens edges pushed axially into a wall; measured).
+//! After the solve, [`surgbench_core::contact::respond_with_normal_impulse`]
+//! applies Coulomb friction (static/dynamic, with the penalty's normal
+//! impulse in the cone) and projects the remaining `d ~ F/k` back to the
+//! margin surface. Twist is not affected by contact (no friction torque about
+//! the wire axis). The reported wall force is the step's total contact
+//! impulse over `dt` (the penalty force at rest).
+
+use crate::band::BandMatrix;
+use crate::energy::{self, Stencil, VertexParams, VertexTerms};
+use std::sync::Arc;
+use surgbench_core::contact::respond_with_normal_impulse;
+use surgbench_core::frames::rotate_about;
+use surgbench_core::{
+    BuildError, ContactObs, ContactParams, DeviceCommand, EnergyObs, EnergyProbe, Iso3, Mat3, RodBody, RodObs, Sdf,
+    SimError, StepStats, Vec3,
+};
+
+/// Number of leading DOFs fixed by the clamp: `x_0`, `theta_0`, `x_1`.
+pub const CLAMPED_DOFS: usize = 7;
+/// Half-bandwidth of the interleaved Hessian.
+const BAND: usize = 10;
+
+/// Time integrator.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Integrator {
+    /// Backward (implicit) Euler: first order, strongly damped, robust.
+    BackwardEuler,
+    /// Newmark average acceleration (`beta = 1/4`, `gamma = 1/2`): second
+    /// order, no numerical damping.
+    Newmark,
+}
+
+/// How the twist angles evolve.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TwistDynamics {
+    /// No rotational inertia: twist is in equilibrium every step (infinite
+    /// twist wave speed, Bergou 2008 section 7.1).
+    QuasiStatic,
+    /// Rotational inertia `rho J |e|` per edge.
+    Dynamic,
+}
+
+/// Solver settings of a [`DerRod`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DerParams {
+    /// Time integrator.
+    pub integrator: Integrator,
+    /// Quasi-static or dynamic twist.
+    pub twist: TwistDynamics,
+    /// Mass-proportional viscous damping coefficient (1/s): force `-c m v`.
+    pub damping: f64,
+    /// Largest number of Newton iterations per step.
+    pub max_iterations: usize,
+    /// Newton stops when the update is below `tolerance` (positions relative
+    /// to the rod length, angles in rad).
+    pub tolerance: f64,
+}
+
+impl Default for DerParams {
+    fn default() -> Self {
+        Self {
+            integrator: Integrator::BackwardEuler,
+            twist: TwistDynamics::QuasiStatic,
+            damping: 0.0,
+            max_iterations: 25,
+            tolerance: 1e-9,
+        }
+    }
+}
+
+/// Which parts of the incremental potential to evaluate.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Eval {
+    Energy,
+    Full,
+}
+
+/// Inertial part of the incremental potential for one step:
+/// `m [ka/2 (q - q_tilde)^2 + kc/2 (q - q_0)^2 - lin_i q]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Inertia {
+    ka: f64,
+    kc: f64,
+}
+
+/// A discrete elastic rod clamped at its base (see the module docs).
+#[derive(Debug, Clone)]
+pub struct DerRod {
+    /// Solver settings (may be changed between steps).
+    pub params: DerParams,
+    /// Gravity (m/s^2).
+    pub gravity: Vec3,
+    /// Dead force on the last node (N).
+    pub tip_force: Vec3,
+    /// Dead torque on the last edge (N m), see the module docs.
+    pub tip_torque: Vec3,
+    vessel: Option<Arc<dyn Sdf>>,
+    contact: ContactParams,
+    contact_stiffness: f64,
+    contact_onset: f64,
+    n: usize,
+    length: f64,
+    base: Iso3,
+    rest_len: Vec<f64>,
+    ea: Vec<f64>,
+    rot_inertia: Vec<f64>,
+    vparams: Vec<VertexParams>,
+    edge_bend: Vec<[f64; 2]>,
+    bend_len: Vec<f64>,
+    node_mass: Vec<f64>,
+    node_forces: Vec<Vec3>,
+    q: Vec<f64>,
+    qdot: Vec<f64>,
+    qddot: Vec<f64>,
+    accel_valid: bool,
+    a1: Vec<Vec3>,
+    tan: Vec<Vec3>,
+    rtwist: Vec<f64>,
+    q0: Vec<f64>,
+    qtilde: Vec<f64>,
+    a1_0: Vec<Vec3>,
+    tan_0: Vec<Vec3>,
+    rtwist_0: Vec<f64>,
+    grad: Vec<f64>,
+    fext: Vec<f64>,
+    fext_prev: Vec<f64>,
+    res: Vec<f64>,
+    dz: Vec<f64>,
+    band: BandMatrix,
+    terms: VertexTerms,
+    inertia: Option<Inertia>,
+    lin: Vec<f64>,
+    time: f64,
+    rest: Vec<Vec3>,
+    arclength: Vec<f64>,
+    contacts: Vec<ContactObs>,
+}
+
+impl DerRod {
+    /// Discretise `body` with `segments` edges over its free length (plus the
+    /// ghost edge behind the clamp). Edge properties come from
+    /// [`RodBody::section_at`] at the edge midpoint; a vertex uses the average
+    /// of its two edges' stiffnesses and the rest curvature of the section at
+    /// its arclength, as the exact turning `kappa_bar = 2 tan(k l / 2)` of a
+    /// circular arc of curvature `k` (1/m) over the Voronoi length `l`. The
+    /// initial configuration is the rest (natural) shape, at rest.
+    pub fn from_body(body: &RodBody, segments: usize) -> Result<Self, BuildError> {
+        body.validate().map_err(|e| BuildError::bad("rod", e))?;
+        if !(2..=1_000_000).contains(&segments) {
+            return Err(BuildError::bad(
+                "segments",
+                format!("need 2..=1e6 rod segments, got {segments}"),
+            ));
+        }
+        let n = segments + 2;
+        let ne = n - 1;
+        let delta = body.length / segments as f64;
+        let rest_len = vec![delta; ne];
+        let mut ea = Vec::with_capacity(ne);
+        let mut bend = Vec::with_capacity(ne);
+        let mut gj = Vec::with_capacity(ne);
+        let mut rot_inertia = Vec::with_capacity(ne);
+        let mut node_mass = vec![0.0; n];
+        for j in 0..ne {
+            let sec = body.section_at((j as f64 - 0.5) * delta);
+            ea.push(sec.youngs_modulus * sec.area());
+            let ei = sec.youngs_modulus * sec.second_moment();
+            bend.push([ei, ei]);
+            gj.push(sec.shear_modulus() * sec.polar_moment());
+            rot_inertia.push(sec.density * sec.polar_moment() * delta);
+            if j >= 1 {
+                let m = sec.density * sec.area() * delta;
+                node_mass[j] += 0.5 * m;
+                node_mass[j + 1] += 0.5 * m;
+            }
+        }
+        let mut vparams = Vec::with_capacity(n);
+        let mut bend_len = Vec::with_capacity(n);
+        for i in 0..n {
+            if i == 0 || i == n - 1 {
+                bend_len.push(delta);
+                vparams.push(VertexParams {
+                    bend: [0.0; 2],
+                    kappa_bar: [0.0; 2],
+                    twist: 0.0,
+                    twist_bar: 0.0,
+                    voronoi: delta,
+                });
+                continue;
+            }
+            let l = 0.5 * (rest_len[i - 1] + rest_len[i]);
+            // Bending length: the clamp vertex's Voronoi region is only its
+            // half inside the free rod (the ghost edge is inside the clamp and
+            // does not bend). With the full region the clamp acts at -Delta/2
+            // and the cantilever converges at first order only (measured).
+            let lb = if i == 1 { 0.5 * rest_len[1] } else { l };
+            bend_len.push(lb);
+            let k = body.section_at((i as f64 - 1.0) * delta).rest_curvature;
+            let km = (k[0] * k[0] + k[1] * k[1]).sqrt();
+            if km * lb >= 0.9 * std::f64::consts::PI {
+                return Err(BuildError::bad(
+                    "segments",
+                    format!(
+                        "rest curvature {km} 1/m turns {:.2} rad per segment: use more segments",
+                        km * lb
+                    ),
+                ));
+            }
+            let kb = if km > 0.0 {
+                2.0 * (0.5 * km * lb).tan() / km
+            } else {
+                0.0
+            };
+            // Energy B (kappa - kappa_bar)^2 / (2 lb), written with the twist's
+            // Voronoi length l: stiffness scaled by l / lb.
+            let sc = l / lb;
+            vparams.push(VertexParams {
+                bend: [
+                    sc * 0.5 * (bend[i - 1][0] + bend[i][0]),
+                    sc * 0.5 * (bend[i - 1][1] + bend[i][1]),
+                ],
+                kappa_bar: [k[0] * kb, k[1] * kb],
+                twist: 0.5 * (gj[i - 1] + gj[i]),
+                twist_bar: 0.0,
+                voronoi: l,
+            });
+        }
+        // Rest shape: integrate the rest turning from the clamp frame.
+        let r = body.base.rotation.to_rotation_matrix();
+        let (mut t, mut d1, mut d2) = (r * Vec3::x(), r * Vec3::y(), r * Vec3::z());
+        let p = body.base.translation.vector;
+        let mut x = vec![p - t * delta, p];
+        let mut a1 = vec![d1];
+        let mut tan = vec![t];
+        for i in 1..n - 1 {
+            let kbar = vparams[i].kappa_bar;
+            let kb = d2 * kbar[0] - d1 * kbar[1];
+            let kn = kb.norm();
+            if kn > 0.0 {
+                let axis = kb / kn;
+                let phi = 2.0 * (0.5 * kn).atan();
+                t = rotate_about(&t, &axis, phi);
+                d1 = rotate_about(&d1, &axis, phi);
+                d2 = rotate_about(&d2, &axis, phi);
+            }
+            x.push(x[i] + t * rest_len[i]);
+            a1.push(d1);
+            tan.push(t);
+        }
+        let ndof = 4 * n - 1;
+        let mut q = vec![0.0; ndof];
+        for (k, xk) in x.iter().enumerate() {
+            q[4 * k..4 * k + 3].copy_from_slice(xk.as_slice());
+        }
+        let mut rtwist = vec![0.0; n];
+        for i in 1..n - 1 {
+            rtwist[i] = energy::reference_twist(&a1[i - 1], &tan[i - 1], &a1[i], &tan[i], 0.0);
+        }
+        let arclength = (0..n).map(|k| (k as f64 - 1.0) * delta).collect();
+        let nfree = ndof - CLAMPED_DOFS;
+        Ok(Self {
+            params: DerParams::default(),
+            gravity: Vec3::zeros(),
+            tip_force: body.tip_force,
+            tip_torque: body.tip_torque,
+            vessel: None,
+            contact: ContactParams::default(),
+            contact_stiffness: 10.0 * (0..ne).map(|j| ea[j] / rest_len[j]).fold(0.0, f64::max),
+            contact_onset: 1e-5 * body.length,
+            n,
+            length: body.length,
+            base: body.base,
+            rest_len,
+            ea,
+            rot_inertia,
+            vparams,
+            edge_bend: bend,
+            bend_len,
+            node_mass,
+            node_forces: vec![Vec3::zeros(); n],
+            qdot: vec![0.0; ndof],
+            qddot: vec![0.0; ndof],
+            accel_valid: false,
+            q0: q.clone(),
+            qtilde: q.clone(),
+            a1_0: a1.clone(),
+            tan_0: tan.clone(),
+            rtwist_0: rtwist.clone(),
+            q,
+            a1,
+            tan,
+            rtwist,
+            grad: vec![0.0; ndof],
+            fext: vec![0.0; ndof],
+            fext_prev: vec![0.0; ndof],
+            res: vec![0.0; nfree],
+            dz: vec![0.0; nfree],
+            band: BandMatrix::new(nfree, BAND),
+            terms: VertexTerms::default(),
+            inertia: None,
+            lin: vec![0.0; ndof],
+            time: 0.0,
+            rest: x,
+            arclength,
+            contacts: Vec::new(),
+        })
+    }
+
+    /// Make the rod collide with a vessel (SDF, negative in the lumen).
+    pub fn set_vessel(&mut self, vessel: Option<Arc<dyn Sdf>>, contact: ContactParams) {
+        self.vessel = vessel;
+        self.contact = contact;
+    }
+
+    /// Add a dead force (N) on node `k` (kept until changed); ignored for the
+    /// clamped nodes 0 and 1 except in the hand force. Out-of-range `k` is
+    /// ignored and reported as `false`.
+    pub fn set_node_force(&mut self, k: usize, f: Vec3) -> bool {
+        match self.node_forces.get_mut(k) {
+            Some(slot) => {
+                *slot = f;
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Override one edge's bending stiffnesses `(B_1, B_2)` (N m^2), e.g.
+    /// for an anisotropic cross-section; the two vertex stiffnesses that
+    /// average this edge are updated. Out-of-range edges are ignored.
+    pub fn set_edge_bending(&mut self, edge: usize, b: [f64; 2]) {
+        if edge >= self.edge_bend.len() {
+            return;
+        }
+        self.edge_bend[edge] = b;
+        for i in [edge, edge + 1] {
+            if i >= 1 && i < self.n - 1 {
+                let (p, c) = (self.edge_bend[i - 1], self.edge_bend[i]);
+                let sc = self.vparams[i].voronoi / self.bend_len[i];
+                self.vparams[i].bend = [sc * 0.5 * (p[0] + c[0]), sc * 0.5 * (p[1] + c[1])];
+            }
+        }
+    }
+
+    /// Number of nodes (`segments + 2`, ghost included).
+    pub fn num_nodes(&self) -> usize {
+        self.n
+    }
+
+    /// Simulated time (s).
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Generalised coordinates `[x_0, theta_0, x_1, ...]` (m, rad).
+    pub fn coords(&self) -> &[f64] {
+        &self.q
+    }
+
+    /// Position of node `k` (m).
+    pub fn node(&self, k: usize) -> Vec3 {
+        Vec3::new(self.q[4 * k], self.q[4 * k + 1], self.q[4 * k + 2])
+    }
+
+    /// Velocity of node `k` (m/s).
+    pub fn node_velocity(&self, k: usize) -> Vec3 {
+        Vec3::new(self.qdot[4 * k], self.qdot[4 * k + 1], self.qdot[4 * k + 2])
+    }
+
+    /// Twist angle of edge `j` relative to its reference frame (rad).
+    pub fn theta(&self, j: usize) -> f64 {
+        self.q[4 * j + 3]
+    }
+
+    /// Lumped mass of node `k` (kg).
+    pub fn node_mass(&self, k: usize) -> f64 {
+        self.node_mass[k]
+    }
+
+    /// Material frame of edge `j`: columns `(m_1, m_2, t)`.
+    pub fn material_frame(&self, j: usize) -> Mat3 {
+        let (m1, m2) = energy::material_frame(&self.tan[j], &self.a1[j], self.theta(j));
+        Mat3::from_columns(&[m1, m2, self.tan[j]])
+    }
+
+    /// Material curvature `(kappa_1, kappa_2)` at vertex `i` (1/m: the
+    /// discrete `kb`-based curvature divided by the Voronoi length).
+    pub fn curvature(&self, i: usize) -> [f64; 2] {
+        let k = energy::curvature(&self.stencil(i));
+        let l = self.bend_len[i];
+        [k[0] / l, k[1] / l]
+    }
+
+    /// Largest relative edge stretch `|e|/|e_bar| - 1`, with its sign.
+    pub fn max_stretch(&self) -> f64 {
+        let mut best: f64 = 0.0;
+        for j in 0..self.n - 1 {
+            let s = (self.node(j + 1) - self.node(j)).norm() / self.rest_len[j] - 1.0;
+            if s.abs() > best.abs() {
+                best = s;
+            }
+        }
+        best
+    }
+
+    /// Contacts found in the last step.
+    pub fn contacts(&self) -> &[ContactObs] {
+        &self.contacts
+    }
+
+    fn dof_mass(&self, g: usize) -> f64 {
+        if g % 4 == 3 {
+            match self.params.twist {
+                TwistDynamics::QuasiStatic => 0.0,
+                TwistDynamics::Dynamic => self.rot_inertia[g / 4],
+            }
+        } else {
+            self.node_mass[g / 4]
+        }
+    }
+
+    fn stencil(&self, i: usize) -> Stencil {
+        Stencil {
+            x: [self.node(i - 1), self.node(i), self.node(i + 1)],
+            theta: [self.theta(i - 1), self.theta(i)],
+            ref_d1: [self.a1[i - 1], self.a1[i]],
+            ref_twist: self.rtwist[i],
+        }
+    }
+
+    /// Place the clamp for a command: node 1 at the base point advanced by
+    /// `insertion` along the base tangent, node 0 one edge behind it, the
+    /// ghost edge's reference director along the base's local y and its twist
+    /// angle equal to `rotation`.
+    fn apply_clamp(&mut self, cmd: &DeviceCommand) {
+        let pose = cmd.base_pose.unwrap_or(self.base);
+        let r = pose.rotation.to_rotation_matrix();
+        let t = r * Vec3::x();
+        let p = pose.translation.vector + t * cmd.insertion;
+        let x0 = p - t * self.rest_len[0];
+        self.q[0..3].copy_from_slice(x0.as_slice());
+        self.q[3] = cmd.rotation;
+        self.q[4..7].copy_from_slice(p.as_slice());
+        self.a1[0] = r * Vec3::y();
+        self.tan[0] = t;
+        self.a1_0[0] = self.a1[0];
+        self.tan_0[0] = t;
+    }
+
+    /// Transport every reference director from the start-of-step frames to
+    /// the current tangents and recompute the reference twists.
+    fn update_frames(&mut self) {
+        for j in 0..self.n - 1 {
+            let t = (self.node(j + 1) - self.node(j)).normalize();
+            self.a1[j] = energy::transport_director(&self.a1_0[j], &self.tan_0[j], &t);
+            self.tan[j] = t;
+        }
+        for i in 1..self.n - 1 {
+            self.rtwist[i] = energy::reference_twist(
+                &self.a1[i - 1],
+                &self.tan[i - 1],
+                &self.a1[i],
+                &self.tan[i],
+                self.rtwist_0[i],
+            );
+        }
+    }
+
+    /// Begin a frame-transport interval at the current state.
+    fn anchor_frames(&mut self) {
+        self.a1_0.copy_from_slice(&self.a1);
+        self.tan_0.copy_from_slice(&self.tan);
+        self.rtwist_0.copy_from_slice(&self.rtwist);
+    }
+
+    /// Dead loads as generalised forces at the current configuration.
+    fn external_forces(&mut self) {
+        let n = self.n;
+        self.fext.iter_mut().for_each(|f| *f = 0.0);
+        for k in 0..n {
+            let f = self.gravity * self.node_mass[k] + self.node_forces[k];
+            for c in 0..3 {
+                self.fext[4 * k + c] += f[c];
+            }
+        }
+        let last = n - 1;
+        let e = self.node(last) - self.node(last - 1);
+        let t = self.tan[last - 1];
+        let axial = self.tip_torque.dot(&t);
+        let perp = self.tip_torque - t * axial;
+        let couple = perp.cross(&e) / e.norm_squared();
+        for c in 0..3 {
+            self.fext[4 * last + c] += self.tip_force[c] + couple[c];
+            self.fext[4 * (last - 1) + c] -= couple[c];
+        }
+        self.fext[4 * (last - 1) + 3] += axial;
+    }
+
+    /// Elastic energy (J) at the current coordinates and frames.
+    pub fn elastic_energy(&self) -> f64 {
+        let mut e = 0.0;
+        for j in 0..self.n - 1 {
+            e += energy::stretch_energy(&self.node(j), &self.node(j + 1), self.ea[j], self.rest_len[j]);
+        }
+        for i in 1..self.n - 1 {
+            e += energy::bend_twist_energy(&self.stencil(i), &self.vparams[i]);
+        }
+        e
+    }
+
+    /// Gradient of the elastic energy over all DOFs at the current state
+    /// (N for positions, N m for angles), without the Hessian.
+    pub fn elastic_gradient(&self) -> Vec<f64> {
+        let mut g = vec![0.0; self.q.len()];
+        let mut terms = VertexTerms::default();
+        for j in 0..self.n - 1 {
+            let (_, gs, _) = energy::stretch(&self.node(j), &self.node(j + 1), self.ea[j], self.rest_len[j]);
+            for c in 0..3 {
+                g[4 * (j + 1) + c] += gs[c];
+                g[4 * j + c] -= gs[c];
+            }
+        }
+        for i in 1..self.n - 1 {
+            energy::bend_twist(&self.stencil(i), &self.vparams[i], &mut terms);
+            for (k, v) in terms.grad.iter().enumerate() {
+                g[4 * (i - 1) + k] += v;
+            }
+        }
+        g
+    }
+
+    /// Evaluate the incremental potential; with [`Eval::Full`] also its
+    /// gradient over the free DOFs (`self.res`) and Hessian (`self.band`).
+    fn eval(&mut self, mode: Eval) -> (f64, f64) {
+        let full = mode == Eval::Full;
+        let n = self.n;
+        let mut phi = 0.0;
+        let mut mag = 0.0;
+        if full {
+            self.grad.iter_mut().for_each(|g| *g = 0.0);
+            self.band.clear();
+        }
+        for j in 0..n - 1 {
+            let (x0, x1) = (self.node(j), self.node(j + 1));
+            if !full {
+                phi += energy::stretch_energy(&x0, &x1, self.ea[j], self.rest_len[j]);
+                continue;
+            }
+            let (e, g, mut h) = energy::stretch(&x0, &x1, self.ea[j], self.rest_len[j]);
+            phi += e;
+            // A compressed edge has a negative transverse stiffness
+            // EA strain / |e| that swamps bending and inertia (e.g. right after
+            // the clamp is pushed forward). Drop it from the Newton matrix
+            // (projected Newton: the matrix stays positive definite; the
+            // gradient is exact, so the converged state is unchanged).
+            let l = (x1 - x0).norm();
+            let strain = l / self.rest_len[j] - 1.0;
+            if strain < 0.0 {
+                let t = (x1 - x0) / l;
+                h -= (Mat3::identity() - t * t.transpose()) * (self.ea[j] * strain / l);
+            }
+            for c in 0..3 {
+                self.grad[4 * (j + 1) + c] += g[c];
+                self.grad[4 * j + c] -= g[c];
+            }
+            let (a, b) = (4 * j, 4 * (j + 1));
+            for r in 0..3 {
+                for c in 0..3 {
+                    let v = h[(r, c)];
+                    self.band_add(b + r, b + c, v);
+                    self.band_add(a + r, a + c, v);
+                    self.band_add(b + r, a + c, -v);
+                }
+            }
+        }
+        for i in 1..n - 1 {
+            let st = self.stencil(i);
+            if !full {
+                phi += energy::bend_twist_energy(&st, &self.vparams[i]);
+                continue;
+            }
+            let mut terms = std::mem::take(&mut self.terms);
+            energy::bend_twist(&st, &self.vparams[i], &mut terms);
+            phi += terms.energy;
+            let off = 4 * (i - 1);
+            for r in 0..energy::VERTEX_DOFS {
+                self.grad[off + r] += terms.grad[r];
+                for c in 0..=r {
+                    self.band_add(off + r, off + c, 0.5 * (terms.jac[r][c] + terms.jac[c][r]));
+                }
+            }
+            self.terms = terms;
+        }
+        if let Some(sdf) = self.vessel.clone() {
+            let kc = self.contact_stiffness;
+            for k in 2..n {
+                let x = self.node(k);
+                let d = sdf.distance(&x) + self.contact.margin;
+                if d > 0.0 {
+                    let (e, de, dde) = penalty(kc, self.contact_onset, d);
+                    phi += e;
+                    if full {
+                        let g = sdf.gradient(&x);
+                        let nn = if g.norm() > 0.0 { g.normalize() } else { g };
+                        for r in 0..3 {
+                            self.grad[4 * k + r] += de * nn[r];
+                            for c in 0..=r {
+                                self.band_add(4 * k + r, 4 * k + c, dde * nn[r] * nn[c]);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        let elastic = phi;
+        let inertia = self.inertia;
+        for g in 0..self.q.len() {
+            let q = self.q[g];
+            phi -= self.fext[g] * q;
+            mag += (self.fext[g] * q).abs();
+            let mut r = self.grad[g] - self.fext[g];
+            if let Some(Inertia { ka, kc }) = inertia {
+                let m = self.dof_mass(g);
+                if m > 0.0 && g >= CLAMPED_DOFS {
+                    let (da, dc) = (q - self.qtilde[g], q - self.q0[g]);
+                    let inert = m * (0.5 * ka * da * da + 0.5 * kc * dc * dc - self.lin[g] * q);
+                    phi += inert;
+                    mag += inert.abs();
+                    r += m * (ka * da + kc * dc - self.lin[g]);
+                    if full {
+                        self.band_add(g, g, m * (ka + kc));
+                    }
+                }
+            }
+            if full && g >= CLAMPED_DOFS {
+                self.res[g - CLAMPED_DOFS] = r;
+            }
+        }
+        (phi, mag + elastic)
+    }
+
+    #[inline]
+    fn band_add(&mut self, r: usize, c: usize, v: f64) {
+        if c >= CLAMPED_DOFS && r >= c {
+            self.band.add(r - CLAMPED_DOFS, c - CLAMPED_DOFS, v);
+        }
+    }
+
+    fn set_free(&mut self, base: &[f64], alpha: f64) {
+        for f in 0..self.dz.len() {
+            self.q[f + CLAMPED_DOFS] = base[f] + alpha * self.dz[f];
+        }
+        self.update_frames();
+    }
+
+    /// Newton on the incremental potential from the current coordinates.
+    /// Frames are re-anchored at every accepted iterate, so the gradient and
+    /// the (symmetric) Hessian are exact for the merit function of the next
+    /// line search.
+    fn newton(&mut self) -> Result<StepStats, SimError> {
+        let tol = self.params.tolerance;
+        self.anchor_frames();
+        // Dead loads are frozen during a line search (the tip torque's
+        // couple depends on the configuration) and refreshed at each iterate.
+        self.external_forces();
+        let (mut phi, mut mag) = self.eval(Eval::Full);
+        let mut stats = StepStats::default();
+        let mut base = vec![0.0; self.dz.len()];
+        for it in 1..=self.params.max_iterations.max(1) {
+            stats.iterations = it as u32;
+            for f in 0..self.dz.len() {
+                self.dz[f] = -self.res[f];
+            }
+            let mut dz = std::mem::take(&mut self.dz);
+            let solved = self.band.factor_and_solve(&mut dz, 0.0);
+            self.dz = dz;
+            if solved.is_err() {
+                let finite = self.res.iter().all(|r| r.is_finite());
+                return Err(SimError::SolverFailed {
+                    t: self.time,
+                    reason: format!(
+                        "Newton matrix not positive definite even with a shift (iteration {it}, residual finite: {finite}, stretch {:.2e})",
+                        self.max_stretch()
+                    ),
+                });
+            }
+            let mut size: f64 = 0.0;
+            for (f, d) in self.dz.iter().enumerate() {
+                let g = f + CLAMPED_DOFS;
+                let s = if g % 4 == 3 { d.abs() } else { d.abs() / self.length };
+                size = size.max(s);
+            }
+            if !size.is_finite() {
+                return Err(SimError::Diverged {
+                    t: self.time,
+                    reason: format!("non-finite Newton update at iteration {it}"),
+                });
+            }
+            let slope: f64 = self.res.iter().zip(&self.dz).map(|(r, d)| r * d).sum();
+            base.copy_from_slice(&self.q[CLAMPED_DOFS..]);
+            stats.residual = size;
+            if size <= tol {
+                self.set_free(&base, 1.0);
+                stats.converged = true;
+                return Ok(stats);
+            }
+            // Backtracking line search (Armijo) on the incremental potential,
+            // skipped when the predicted decrease is at the rounding level of
+            // the potential (there the full Newton step is the right one).
+            let noise = 1e-13 * mag;
+            let search = slope < -1e3 * noise;
+            let mut alpha = 1.0;
+            self.set_free(&base, alpha);
+            let (mut phi_new, mut mag_new) = self.eval(Eval::Full);
+            let mut backtracked = false;
+            while search && !(phi_new <= phi + 1e-4 * alpha * slope + noise) && alpha > 1e-3 {
+                alpha *= 0.5;
+                self.set_free(&base, alpha);
+                (phi_new, mag_new) = self.eval(Eval::Energy);
+                backtracked = true;
+            }
+            if backtracked {
+                (phi_new, mag_new) = self.eval(Eval::Full);
+            }
+            stats.residual = size * alpha;
+            if !phi_new.is_finite() {
+                return Err(SimError::Diverged {
+                    t: self.time,
+                    reason: format!("non-finite energy in Newton iteration {it}"),
+                });
+            }
+            // Re-anchor the frame transport at the accepted iterate and
+            // refresh the dead loads there.
+            self.anchor_frames();
+            phi = phi_new;
+            mag = mag_new;
+            std::mem::swap(&mut self.fext, &mut self.fext_prev);
+            self.external_forces();
+            for g in 0..self.q.len() {
+                let d = self.fext[g] - self.fext_prev[g];
+                if d != 0.0 {
+                    phi -= d * self.q[g];
+                    if g >= CLAMPED_DOFS {
+                        self.res[g - CLAMPED_DOFS] -= d;
+                    }
+                }
+            }
+        }
+        Ok(stats)
+    }
+
+    /// Advance by `dt` (s) with the clamp at `cmd` at the end of the step.
+    pub fn step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
+        if !(dt > 0.0 && dt.is_finite()) {
+            return Err(SimError::SolverFailed {
+                t: self.time,
+                reason: format!("time step must be > 0 s, got {dt}"),
+            });
+        }
+        let newmark = self.params.integrator == Integrator::Newmark;
+        let c = self.params.damping;
+        self.anchor_frames();
+        if newmark && !self.accel_valid {
+            self.init_acceleration();
+        }
+        self.q0.copy_from_slice(&self.q);
+        let ndof = self.q.len();
+        for g in 0..ndof {
+            let (q, v, a) = (self.q[g], self.qdot[g], self.qddot[g]);
+            if newmark {
+                self.qtilde[g] = q + dt * v + 0.25 * dt * dt * a;
+                self.lin[g] = c * v;
+            } else {
+                self.qtilde[g] = q + dt * v;
+                self.lin[g] = 0.0;
+            }
+        }
+        self.inertia = Some(if newmark {
+            Inertia {
+                ka: 4.0 / (dt * dt),
+                kc: 2.0 * c / dt,
+            }
+        } else {
+            Inertia {
+                ka: 1.0 / (dt * dt),
+                kc: c / dt,
+            }
+        });
+        self.apply_clamp(cmd);
+        self.update_frames();
+        let stats = self.newton()?;
+        // Velocities (and accelerations) from the solved positions.
+        for g in 0..ndof {
+            let m = if g < CLAMPED_DOFS { 0.0 } else { self.dof_mass(g) };
+            if newmark && m > 0.0 {
+                let a = 4.0 / (dt * dt) * (self.q[g] - self.q0[g] - dt * self.qdot[g]) - self.qddot[g];
+                self.qdot[g] += 0.5 * dt * (self.qddot[g] + a);
+                self.qddot[g] = a;
+            } else {
+                self.qdot[g] = (self.q[g] - self.q0[g]) / dt;
+                self.qddot[g] = 0.0;
+            }
+        }
+        self.accel_valid = newmark;
+        self.time += dt;
+        self.resolve_contacts(dt);
+        self.update_frames();
+        self.check_finite()?;
+        Ok(stats)
+    }
+
+    /// Static equilibrium with the clamp at `cmd` (no inertia, no contact):
+    /// Newton on `E - F . q` from the current state (at least 100 iterations,
+    /// large loads need many damped steps), velocities set to zero.
+    pub fn solve_static(&mut self, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
+        self.anchor_frames();
+        self.inertia = None;
+        self.apply_clamp(cmd);
+        self.update_frames();
+        let keep = self.params.max_iterations;
+        self.params.max_iterations = keep.max(100);
+        let stats = self.newton();
+        self.params.max_iterations = keep;
+        let stats = stats?;
+        self.qdot.iter_mut().for_each(|v| *v = 0.0);
+        self.accel_valid = false;
+        self.check_finite()?;
+        Ok(stats)
+    }
+
+    /// Newmark needs the acceleration at the start: `a = (F - grad E - c m v)/m`.
+    fn init_acceleration(&mut self) {
+        let g = self.elastic_gradient();
+        self.external_forces();
+        for k in 0..self.q.len() {
+            let m = if k < CLAMPED_DOFS { 0.0 } else { self.dof_mass(k) };
+            self.qddot[k] = if m > 0.0 {
+                (self.fext[k] - g[k]) / m - self.params.damping * self.qdot[k]
+            } else {
+                0.0
+            };
+        }
+        self.accel_valid = true;
+    }
+
+    /// Post-step contact: friction and the final projection for every node
+    /// the penalty left past the margin surface. The wall force is the total
+    /// impulse over the step (penalty normal impulse, projection, friction)
+    /// divided by `dt`; at rest it is the converged penalty force, i.e. the
+    /// exact contact reaction of the solved equilibrium.
+    fn resolve_contacts(&mut self, dt: f64) {
+        self.contacts.clear();
+        let Some(sdf) = self.vessel.clone() else {
+            return;
+        };
+        let newmark = self.params.integrator == Integrator::Newmark;
+        for k in 2..self.n {
+            let (x, v) = (self.node(k), self.node_velocity(k));
+            let m = self.node_mass[k];
+            let depth = sdf.distance(&x) + self.contact.margin;
+            // Normal impulse the penalty already applied during the step.
+            let prior = dt * penalty(self.contact_stiffness, self.contact_onset, depth.max(0.0)).1;
+            if let Some(c) = respond_with_normal_impulse(sdf.as_ref(), &self.contact, &x, &v, m, dt, prior) {
+                for i in 0..3 {
+                    let g = 4 * k + i;
+                    if newmark {
+                        // Keep v_{n+1} = v_n + dt/2 (a_n + a_{n+1}) consistent.
+                        self.qddot[g] += 2.0 * (c.velocity[i] - v[i]) / dt;
+                    }
+                    self.q[g] = c.position[i];
+                    self.qdot[g] = c.velocity[i];
+                }
+                self.contacts.push(ContactObs {
+                    point: c.position,
+                    force: c.force(dt),
+                    penetration: sdf.distance(&c.position).max(0.0),
+                });
+            }
+        }
+    }
+
+    fn check_finite(&self) -> Result<(), SimError> {
+        // An edge at half or double its rest length is a failed simulation
+        // (the wire is near-inextensible), not a state to continue from.
+        if !self.q.iter().chain(&self.qdot).all(|v| v.is_finite()) {
+            return Err(SimError::Diverged {
+                t: self.time,
+                reason: "non-finite rod state".into(),
+            });
+        }
+        let s = self.max_stretch();
+        if s.abs() > 0.5 {
+            return Err(SimError::Diverged {
+                t: self.time,
+                reason: format!("edge stretched by {:.0}%", 100.0 * s),
+            });
+        }
+        Ok(())
+    }
+
+    /// Force and torque (N, N m; torque about the clamp point, world frame)
+    /// the rod exerts on the clamp: the internal forces on the clamped DOFs
+    /// plus the dead loads applied on the clamped nodes (inertia of the
+    /// clamped nodes is not included). At static equilibrium they equal the
+    /// total external load and its moment about the clamp (tested).
+    pub fn hand_wrench(&self) -> (Vec3, Vec3) {
+        let g = self.elastic_gradient();
+        let p = self.node(1);
+        let mut f = Vec3::zeros();
+        let mut tq = Vec3::zeros();
+        for k in 0..2 {
+            let fk = Vec3::new(-g[4 * k], -g[4 * k + 1], -g[4 * k + 2])
+                + self.gravity * self.node_mass[k]
+                + self.node_forces[k];
+            f += fk;
+            tq += (self.node(k) - p).cross(&fk);
+        }
+        tq += self.tan[0] * (-g[3]);
+        (f, tq)
+    }
+
+    /// Kinetic, elastic and external (gravity and dead-force potential)
+    /// energies (J). The dead tip torque has no potential here.
+    pub fn energies(&self) -> EnergyObs {
+        let mut kin = 0.0;
+        for g in CLAMPED_DOFS..self.q.len() {
+            kin += 0.5 * self.dof_mass(g) * self.qdot[g] * self.qdot[g];
+        }
+        let mut ext = 0.0;
+        for k in 0..self.n {
+            ext -= (self.gravity * self.node_mass[k] + self.node_forces[k]).dot(&self.node(k));
+        }
+        ext -= self.tip_force.dot(&self.node(self.n - 1));
+        EnergyObs {
+            kinetic: kin,
+            elastic: self.elastic_energy(),
+            external: ext,
+        }
+    }
+
+    /// The rod's state in the harness's format.
+    pub fn rod_obs(&self) -> RodObs {
+        RodObs {
+            arclength: self.arclength.clone(),
+            rest: self.rest.clone(),
+            nodes: (0..self.n).map(|k| self.node(k)).collect(),
+            velocities: (0..self.n).map(|k| self.node_velocity(k)).collect(),
+            frames: (0..self.n - 1).map(|j| self.material_frame(j)).collect(),
+            max_stretch: self.max_stretch(),
+        }
+    }
+}
+
+/// Energy access for the conformance suite. Coordinates are
+/// [`DerRod::coords`]; `set_coords` transports the reference frames from the
+/// current ones (as Newton does). The potential is the elastic energy plus
+/// the gravity and dead-force potential; the dead tip torque is not
+/// conservative in this discretisation and is left out of both the
+/// potential and the forces.
+impl EnergyProbe for DerRod {
+    fn coords(&self) -> Vec<f64> {
+        self.q.clone()
+    }
+    fn set_coords(&mut self, q: &[f64]) {
+        self.anchor_frames();
+        let n = q.len().min(self.q.len());
+        self.q[..n].copy_from_slice(&q[..n]);
+        self.update_frames();
+    }
+    fn potential(&self) -> f64 {
+        let e = self.energies();
+        e.elastic + e.external
+    }
+    fn forces(&self) -> Vec<f64> {
+        let mut f = self.elastic_gradient();
+        f.iter_mut().for_each(|v| *v = -*v);
+        for k in 0..self.n {
+            let l = self.gravity * self.node_mass[k] + self.node_forces[k];
+            for c in 0..3 {
+                f[4 * k + c] += l[c];
+            }
+        }
+        for c in 0..3 {
+            f[4 * (self.n - 1) + c] += self.tip_force[c];
+        }
+        f
+    }
+    fn free(&self) -> Vec<usize> {
+        (CLAMPED_DOFS..self.q.len()).collect()
+    }
+}
+
+/// Contact penalty energy of depth `d > 0` with stiffness `k` (N/m) and a
+/// cubic onset of width `eps` (m) that makes it C2 (Newton converges instead
+/// of cycling at the kink): `k d^3 / (6 eps)` below `eps`, then
+/// `k (d^2/2 - eps d/2 + eps^2/6)`. Returns energy, derivative, second derivative.
+fn penalty(k: f64, eps: f64, d: f64) -> (f64, f64, f64) {
+    if d < eps {
+        (k * d * d * d / (6.0 * eps), k * d * d / (2.0 * eps), k * d / eps)
+    } else {
+        (
+            k * (0.5 * d * d - 0.5 * eps * d + eps * eps / 6.0),
+            k * (d - 0.5 * eps),
+            k,
+        )
+    }
+}
