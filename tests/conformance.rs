@@ -259,6 +259,8 @@ fn unsupported_scene(f: &dyn ModelFactory) -> Option<(Capability, Scene)> {
             },
             fixed_nodes: vec![0],
             driven_nodes: vec![],
+            partial_fixed: vec![],
+            pressure_faces: vec![],
         }));
         return Some((Capability::Tissue, s));
     }

@@ -1,1 +1,208 @@
-//! The fixed-rate haptic loop runner (work in progress).
+//! The fixed-rate haptic loop: step a model at 1 kHz (or any rate) against
+//! the wall clock on its own thread and report deadline misses, latency
+//! percentiles and jitter.
+//!
+//! Tick `k` is scheduled at `start + k / rate`. At each tick the loop asks
+//! the device for its command at simulated time `t_{k+1} = (k + 1) / rate`,
+//! advances the model by one period (in `ceil(period / model.dt())` equal
+//! substeps), observes it and renders the hand force and torque. Then it
+//! sleeps (and spins for the last 100 us) until the next tick.
+//!
+//! - *latency*: wall time from a tick's scheduled start to its render;
+//! - *deadline miss*: a tick whose render came after the next tick's
+//!   scheduled start (the device would have rendered stale force);
+//! - *jitter*: how late ticks start, `actual - scheduled` (s), summarized by
+//!   its mean and maximum.
+//!
+//! The simulated result does not depend on timing: the model sees the same
+//! commands and time steps however late a tick runs, so two runs render
+//! bit-identical feedback (checked in `tests/vessel_haptic.rs`).
+
+use crate::scenario::UsageError;
+use std::fmt;
+use std::time::{Duration, Instant};
+use surgbench_core::haptic::{Feedback, HapticDevice};
+use surgbench_core::{DeviceCommand, Model};
+
+/// What one haptic loop measured.
+#[derive(Debug, Clone, Default)]
+pub struct HapticReport {
+    /// Loop rate (Hz).
+    pub rate_hz: f64,
+    /// Requested duration (s).
+    pub duration_s: f64,
+    /// Ticks run.
+    pub ticks: usize,
+    /// Model substeps per tick.
+    pub substeps: usize,
+    /// Ticks that rendered after the next tick's deadline.
+    pub deadline_misses: usize,
+    /// Median latency, scheduled start to render (ms).
+    pub latency_p50_ms: f64,
+    /// 95th percentile latency (ms).
+    pub latency_p95_ms: f64,
+    /// 99th percentile latency (ms).
+    pub latency_p99_ms: f64,
+    /// Largest latency (ms).
+    pub latency_max_ms: f64,
+    /// Mean lateness of tick starts (ms).
+    pub jitter_mean_ms: f64,
+    /// Largest lateness of a tick start (ms).
+    pub jitter_max_ms: f64,
+    /// Wall time of the whole loop (s).
+    pub wall_s: f64,
+    /// Why the loop stopped early (a model error), if it did.
+    pub stopped: Option<String>,
+    /// Commands sent to the model, one per tick.
+    pub commands: Vec<DeviceCommand>,
+    /// Feedback rendered, one per tick.
+    pub feedback: Vec<Feedback>,
+}
+
+impl HapticReport {
+    /// Fraction of ticks that missed their deadline.
+    pub fn miss_ratio(&self) -> f64 {
+        if self.ticks == 0 {
+            0.0
+        } else {
+            self.deadline_misses as f64 / self.ticks as f64
+        }
+    }
+}
+
+impl fmt::Display for HapticReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(f, "{:<22} {:>14}", "metric", "value")?;
+        writeln!(f, "{:<22} {:>14.1}", "rate (Hz)", self.rate_hz)?;
+        writeln!(f, "{:<22} {:>14}", "ticks", self.ticks)?;
+        writeln!(f, "{:<22} {:>14}", "substeps per tick", self.substeps)?;
+        writeln!(
+            f,
+            "{:<22} {:>14}",
+            "deadline misses",
+            format!("{} ({:.2}%)", self.deadline_misses, 100.0 * self.miss_ratio())
+        )?;
+        for (name, v) in [
+            ("latency p50 (ms)", self.latency_p50_ms),
+            ("latency p95 (ms)", self.latency_p95_ms),
+            ("latency p99 (ms)", self.latency_p99_ms),
+            ("latency max (ms)", self.latency_max_ms),
+            ("jitter mean (ms)", self.jitter_mean_ms),
+            ("jitter max (ms)", self.jitter_max_ms),
+        ] {
+            writeln!(f, "{name:<22} {v:>14.4}")?;
+        }
+        writeln!(f, "{:<22} {:>14.3}", "wall time (s)", self.wall_s)?;
+        if let Some(s) = &self.stopped {
+            writeln!(f, "stopped early: {s}")?;
+        }
+        Ok(())
+    }
+}
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
+}
+
+/// Run `model` against `device` at `rate_hz` for `duration_s` seconds of
+/// wall (and simulated) time on a dedicated thread; see the module docs.
+/// The device is borrowed, so a [`surgbench_core::haptic::ReplayDevice`]
+/// can write its recording afterwards. A model error stops the loop and is
+/// reported in [`HapticReport::stopped`].
+pub fn run_haptic_loop(
+    model: Box<dyn Model>,
+    device: &mut dyn HapticDevice,
+    rate_hz: f64,
+    duration_s: f64,
+) -> Result<HapticReport, UsageError> {
+    if !(rate_hz > 0.0 && rate_hz.is_finite() && rate_hz <= 1e6) {
+        return Err(UsageError(format!("haptic rate must be in (0, 1e6] Hz, got {rate_hz}")));
+    }
+    if !(duration_s > 0.0 && duration_s.is_finite()) {
+        return Err(UsageError(format!("haptic duration must be > 0 s, got {duration_s}")));
+    }
+    let ticks = (duration_s * rate_hz).round().max(1.0) as usize;
+    let period = 1.0 / rate_hz;
+    let mdt = model.dt();
+    let substeps = if mdt > 0.0 && mdt.is_finite() {
+        (period / mdt * (1.0 - 1e-12)).ceil().max(1.0) as usize
+    } else {
+        1
+    };
+    let dt = period / substeps as f64;
+    std::thread::scope(|scope| {
+        let handle = std::thread::Builder::new()
+            .name("haptic-loop".into())
+            .spawn_scoped(scope, move || {
+                let mut model = model;
+                let mut rep = HapticReport {
+                    rate_hz,
+                    duration_s,
+                    substeps,
+                    commands: Vec::with_capacity(ticks),
+                    feedback: Vec::with_capacity(ticks),
+                    ..Default::default()
+                };
+                let mut latency = Vec::with_capacity(ticks);
+                let mut lateness = Vec::with_capacity(ticks);
+                let start = Instant::now();
+                let spin = Duration::from_micros(100);
+                'ticks: for k in 0..ticks {
+                    let scheduled = start + Duration::from_secs_f64(k as f64 * period);
+                    // Wait for the tick: sleep, then spin the last 100 us.
+                    loop {
+                        let now = Instant::now();
+                        if now >= scheduled {
+                            break;
+                        }
+                        let left = scheduled - now;
+                        if left > spin {
+                            std::thread::sleep(left - spin);
+                        } else {
+                            std::hint::spin_loop();
+                        }
+                    }
+                    lateness.push((Instant::now() - scheduled).as_secs_f64());
+                    let t = (k + 1) as f64 * period;
+                    let cmd = device.command(t);
+                    for _ in 0..substeps {
+                        if let Err(e) = model.step(dt, &cmd) {
+                            rep.stopped = Some(e.to_string());
+                            break 'ticks;
+                        }
+                    }
+                    let obs = model.observe();
+                    let fb = Feedback {
+                        t,
+                        force: obs.hand_force,
+                        torque: obs.hand_torque,
+                    };
+                    device.render(&fb);
+                    let done = Instant::now();
+                    latency.push((done - scheduled).as_secs_f64());
+                    if done > scheduled + Duration::from_secs_f64(period) {
+                        rep.deadline_misses += 1;
+                    }
+                    rep.commands.push(cmd);
+                    rep.feedback.push(fb);
+                    rep.ticks = k + 1;
+                }
+                rep.wall_s = start.elapsed().as_secs_f64();
+                latency.sort_by(f64::total_cmp);
+                rep.latency_p50_ms = 1e3 * percentile(&latency, 0.5);
+                rep.latency_p95_ms = 1e3 * percentile(&latency, 0.95);
+                rep.latency_p99_ms = 1e3 * percentile(&latency, 0.99);
+                rep.latency_max_ms = 1e3 * latency.last().copied().unwrap_or(f64::NAN);
+                rep.jitter_mean_ms = 1e3 * lateness.iter().sum::<f64>() / lateness.len().max(1) as f64;
+                rep.jitter_max_ms = 1e3 * lateness.iter().copied().fold(0.0, f64::max);
+                rep
+            })
+            .map_err(|e| UsageError(format!("cannot start the haptic thread: {e}")))?;
+        handle
+            .join()
+            .map_err(|_| UsageError("the haptic thread panicked (a model panicked inside step or observe)".into()))
+    })
+}

@@ -50,6 +50,7 @@ pub fn scenarios() -> Vec<&'static dyn Scenario> {
         &scenarios::rod::CantileverTipLoad,
         &scenarios::rod::TorqueTransfer,
     ];
+    v.extend(scenarios::tissue::all());
     v.extend(scenarios::vessel::all());
     v
 }

@@ -2,3 +2,4 @@
 
 pub mod rod;
 pub mod vessel;
+pub mod tissue;

@@ -48,6 +48,10 @@ pub enum Capability {
     Insertion,
     /// 3D deformable solid.
     Tissue,
+    /// Pressure (follower) loads on tissue boundary faces.
+    PressureLoad,
+    /// Nodes held along some axes only (rollers, symmetry, plane strain).
+    RollerConstraint,
     /// Rod-tissue coupling.
     NeedleTissue,
     /// Contact with a vessel wall (SDF).
@@ -71,6 +75,8 @@ impl Capability {
             Capability::RestCurvature => "natural (pre-shaped) curvature",
             Capability::Insertion => "insertion/retraction at the base",
             Capability::Tissue => "3D deformable tissue",
+            Capability::PressureLoad => "pressure loads on tissue faces",
+            Capability::RollerConstraint => "nodes held along some axes only (rollers, symmetry planes)",
             Capability::NeedleTissue => "needle-tissue coupling",
             Capability::VesselContact => "contact with a vessel wall",
             Capability::Friction => "Coulomb friction",
@@ -89,6 +95,8 @@ impl Capability {
             Capability::RestCurvature => "rest-curvature",
             Capability::Insertion => "insertion",
             Capability::Tissue => "tissue",
+            Capability::PressureLoad => "pressure-load",
+            Capability::RollerConstraint => "roller-constraint",
             Capability::NeedleTissue => "needle-tissue",
             Capability::VesselContact => "vessel-contact",
             Capability::Friction => "friction",

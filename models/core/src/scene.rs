@@ -194,6 +194,29 @@ pub struct TissueBody {
     /// Nodes driven to a displacement (m) by the end of the control ramp;
     /// the control timeline's `insertion` (0..1) scales it.
     pub driven_nodes: Vec<(usize, Vec3)>,
+    /// Nodes fixed along some axes only (`true` = that world component held
+    /// at rest): rollers, symmetry planes, plane-strain ends.
+    pub partial_fixed: Vec<(usize, [bool; 3])>,
+    /// Pressure loads (Pa) on boundary faces: the face's nodes in the order
+    /// whose right-hand normal points out of the body; the pressure pushes
+    /// against that normal (into the body) and follows the deformed face.
+    /// Scaled by the control timeline's `insertion` (0..1) like the driven
+    /// displacements.
+    pub pressure_faces: Vec<([usize; 3], f64)>,
+}
+
+impl TissueBody {
+    /// A body with no boundary conditions yet.
+    pub fn new(mesh: TetMesh, material: SolidMaterial) -> Self {
+        Self {
+            mesh,
+            material,
+            fixed_nodes: Vec::new(),
+            driven_nodes: Vec::new(),
+            partial_fixed: Vec::new(),
+            pressure_faces: Vec::new(),
+        }
+    }
 }
 
 /// A body in the scene.
@@ -416,7 +439,15 @@ impl Scene {
                         c.push(Capability::Insertion);
                     }
                 }
-                Body::Tissue(_) => c.push(Capability::Tissue),
+                Body::Tissue(t) => {
+                    c.push(Capability::Tissue);
+                    if !t.pressure_faces.is_empty() {
+                        c.push(Capability::PressureLoad);
+                    }
+                    if !t.partial_fixed.is_empty() {
+                        c.push(Capability::RollerConstraint);
+                    }
+                }
             }
         }
         if self.environment.vessel.is_some() {
@@ -446,6 +477,18 @@ impl Scene {
                 Body::Rod(r) => r.validate()?,
                 Body::Tissue(t) => {
                     t.mesh.validate()?;
+                    let n = t.mesh.nodes.len();
+                    let bad = t.fixed_nodes.iter().copied()
+                        .chain(t.driven_nodes.iter().map(|d| d.0))
+                        .chain(t.partial_fixed.iter().map(|d| d.0))
+                        .chain(t.pressure_faces.iter().flat_map(|f| f.0))
+                        .find(|&i| i >= n);
+                    if let Some(i) = bad {
+                        return Err(format!("tissue boundary condition refers to node {i} but the mesh has {n} nodes"));
+                    }
+                    if t.pressure_faces.iter().any(|f| !f.1.is_finite()) {
+                        return Err("tissue pressure must be finite".into());
+                    }
                     let m = &t.material;
                     let ok = m.youngs_modulus > 0.0 && m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5 && m.density > 0.0;
                     if !ok {
@@ -484,6 +527,9 @@ impl Scene {
                     for (_, d) in &mut t.driven_nodes {
                         *d = rot * *d;
                     }
+                    // Axis-aligned partial constraints do not rotate; a
+                    // transformed scene keeps them only if the rotation maps
+                    // axes to axes, which `transformed` cannot guarantee.
                 }
             }
         }

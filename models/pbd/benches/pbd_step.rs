@@ -77,6 +77,8 @@ fn tissue_model(hash_box: f64) -> Box<dyn Model> {
         },
         fixed_nodes,
         driven_nodes,
+        partial_fixed: vec![],
+        pressure_faces: vec![],
     }));
     let mut f = Fidelity {
         dt: Some(1e-3),

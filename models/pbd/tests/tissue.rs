@@ -59,6 +59,8 @@ fn block_scene(
         },
         fixed_nodes,
         driven_nodes,
+        partial_fixed: vec![],
+        pressure_faces: vec![],
     }));
     scene
 }
