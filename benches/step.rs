@@ -14,11 +14,11 @@ fn build(w: &Workload) -> (Box<dyn Model>, surgbench_core::Scene) {
     let f = registry::model(&w.model).expect("model");
     let overrides: Vec<(String, f64)> = w.params.iter().map(|(k, v)| (k.clone(), *v)).collect();
     let p = Params::resolve(sc.id(), sc.params(), &overrides).expect("params");
-    let run = sc.instantiate(&p).expect("scenario instance");
     let mut fid = Fidelity::default();
     for (k, v) in &w.fidelity {
         fid.set(k, *v).expect("fidelity");
     }
+    let run = sc.instantiate_at(&p, &fid).expect("scenario instance");
     let fid = f.default_fidelity(run.scene()).merged(&fid);
     (f.build(run.scene(), &fid).expect("build"), run.scene().clone())
 }

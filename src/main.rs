@@ -219,7 +219,7 @@ fn run_one(
     if repeats == 0 {
         return Err(Failure::Usage("--repeats must be >= 1".into()));
     }
-    let run = sc.instantiate(&params)?;
+    let run = sc.instantiate_at(&params, &fid)?;
     let opts = RunOptions {
         repeats,
         ..Default::default()

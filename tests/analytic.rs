@@ -11,11 +11,11 @@ fn run(scenario: &str, model: &str, overrides: &[(&str, f64)], fidelity: &[(&str
     let sc = registry::scenario(scenario).unwrap();
     let o: Vec<(String, f64)> = overrides.iter().map(|(k, v)| (k.to_string(), *v)).collect();
     let p = Params::resolve(sc.id(), sc.params(), &o).unwrap();
-    let inst = sc.instantiate(&p).unwrap();
     let mut fid = Fidelity::default();
     for (k, v) in fidelity {
         fid.set(k, *v).unwrap();
     }
+    let inst = sc.instantiate_at(&p, &fid).unwrap();
     let f = registry::model(model).unwrap();
     let s = run_single(sc, &p, inst.as_ref(), f, &fid, &RunOptions::default()).unwrap();
     assert_eq!(s.status, "ok", "{scenario}/{model} {fidelity:?}: {}", s.reason);

@@ -206,6 +206,11 @@ impl Comparison {
                 let fixed = expand(&me.fidelity.iter().map(|(k, v)| (k.clone(), vec![*v])).collect())?;
                 for fid in sweep {
                     let fid = fid.merged(&fixed[0]);
+                    // Geometry may depend on the fidelity (tissue meshes):
+                    // validate that instance too, before anything runs.
+                    if fid.mesh_level.is_some() {
+                        sc.instantiate_at(&params, &fid)?;
+                    }
                     fid.check_extras(f.fidelity_keys())
                         .map_err(|e| UsageError(format!("scenario `{}`, model `{id}`: {}", sc.id(), e.0)))?;
                     jobs.push(Job {

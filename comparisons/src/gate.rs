@@ -90,11 +90,11 @@ pub fn run_workload(w: &Workload, steps: usize) -> Result<(), UsageError> {
     let f = registry::model(&w.model)?;
     let overrides: Vec<(String, f64)> = w.params.iter().map(|(k, v)| (k.clone(), *v)).collect();
     let params = Params::resolve(sc.id(), sc.params(), &overrides)?;
-    let run = sc.instantiate(&params)?;
     let mut fid = Fidelity::default();
     for (k, v) in &w.fidelity {
         fid.set(k, *v).map_err(|e| UsageError(e.0))?;
     }
+    let run = sc.instantiate_at(&params, &fid)?;
     let fid = f.default_fidelity(run.scene()).merged(&fid);
     let mut m = f.build(run.scene(), &fid).map_err(|e| UsageError(format!("{}: {e}", w.key())))?;
     let dt = m.dt();

@@ -198,6 +198,15 @@ pub trait Scenario: Send + Sync {
     }
     /// Validate parameters, build the scene and compute the reference.
     fn instantiate(&self, params: &Params) -> Result<Box<dyn ScenarioRun>, UsageError>;
+
+    /// Instantiate for a requested fidelity. Scenarios whose geometry
+    /// depends on a fidelity knob (tissue meshes built at `mesh_level`)
+    /// override this; the default ignores the fidelity. The harness always
+    /// calls this one.
+    fn instantiate_at(&self, params: &Params, fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
+        let _ = fidelity;
+        self.instantiate(params)
+    }
 }
 
 /// Sweep over one fidelity knob.
