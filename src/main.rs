@@ -5,6 +5,15 @@
 //! on exit 2 nothing is written.
 
 use clap::{Parser, Subcommand};
+
+/// `println!` that ignores a closed stdout (e.g. piped into `head`): output
+/// for people must never turn into a panic.
+macro_rules! say {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($t)*);
+    }};
+}
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use surgbench_comparisons::batch::{self, BatchError, BatchOptions};
@@ -168,25 +177,25 @@ fn short(v: f64) -> String {
 }
 
 fn list() {
-    println!("SCENARIOS");
+    say!("SCENARIOS");
     for s in registry::scenarios() {
-        println!("  {:<22} [{}] {}", s.id(), s.family().name(), s.description());
-        println!("  {:<22} reference: {}", "", s.reference());
+        say!("  {:<22} [{}] {}", s.id(), s.family().name(), s.description());
+        say!("  {:<22} reference: {}", "", s.reference());
         for p in s.params() {
-            println!("  {:<24}{:<16} = {:<10} {:<7} {}", "", p.name, short(p.default), p.unit, p.doc);
+            say!("  {:<24}{:<16} = {:<10} {:<7} {}", "", p.name, short(p.default), p.unit, p.doc);
         }
     }
-    println!("\nMODELS");
+    say!("\nMODELS");
     for r in registry::models() {
         let f = r.factory;
         let caps: Vec<_> = f.capabilities().iter().map(|c| c.name()).collect();
-        println!("  {:<12} [{}] {}", f.id(), f.family().name(), f.description());
-        println!("  {:<12} capabilities: {}", "", caps.join(", "));
+        say!("  {:<12} [{}] {}", f.id(), f.family().name(), f.description());
+        say!("  {:<12} capabilities: {}", "", caps.join(", "));
         for k in f.fidelity_keys() {
-            println!("  {:<14}fidelity {:<14} {}", "", k.name, k.doc);
+            say!("  {:<14}fidelity {:<14} {}", "", k.name, k.doc);
         }
     }
-    println!("\nCOMPARISONS");
+    say!("\nCOMPARISONS");
     if let Ok(rd) = std::fs::read_dir(project_root().join("comparisons")) {
         let mut names: Vec<_> = rd
             .filter_map(|e| e.ok())
@@ -196,7 +205,7 @@ fn list() {
         names.sort();
         for p in names {
             let desc = Comparison::load(&p).map(|c| c.description).unwrap_or_else(|e| format!("(unreadable: {e})"));
-            println!("  {:<22} {}", p.file_stem().unwrap_or_default().to_string_lossy(), desc);
+            say!("  {:<22} {}", p.file_stem().unwrap_or_default().to_string_lossy(), desc);
         }
     }
 }
@@ -229,7 +238,7 @@ fn run_one(
     runner::write_run_files(&tmp, &summary).map_err(|e| Failure::Runtime(format!("cannot write run files: {e}")))?;
     batch::replace_dir(&tmp, out).map_err(|e| Failure::Runtime(format!("cannot move run into {}: {e}", out.display())))?;
     if !quiet {
-        println!(
+        say!(
             "{} / {} [{}]: {}{}",
             summary.scenario,
             summary.model,
@@ -238,12 +247,12 @@ fn run_one(
             if summary.reason.is_empty() { String::new() } else { format!(" ({})", summary.reason) }
         );
         if let Some(ms) = summary.ms_per_step_median {
-            println!("  {} steps, {:.4} s simulated, {ms:.4} ms/step median, end: {}", summary.steps, summary.sim_time_s, summary.end);
+            say!("  {} steps, {:.4} s simulated, {ms:.4} ms/step median, end: {}", summary.steps, summary.sim_time_s, summary.end);
         }
         for (k, v) in &summary.errors {
-            println!("  {k:<34} {v:.6e}");
+            say!("  {k:<34} {v:.6e}");
         }
-        println!("  written to {}", out.display());
+        say!("  written to {}", out.display());
     }
     Ok(())
 }
@@ -297,7 +306,7 @@ fn main() -> ExitCode {
             })?;
             if !quiet {
                 let count = |s: &str| rows.iter().filter(|r| r.status == s).count();
-                println!(
+                say!(
                     "{} runs: {} ok, {} unstable, {} unsupported, {} failed, {} timeout",
                     rows.len(),
                     count("ok"),
@@ -306,7 +315,7 @@ fn main() -> ExitCode {
                     count("failed"),
                     count("timeout")
                 );
-                println!("report: {}", out.join("index.html").display());
+                say!("report: {}", out.join("index.html").display());
             }
             Ok(())
         })(),
@@ -328,25 +337,25 @@ fn main() -> ExitCode {
                 surgbench_reports::ReportError::Io { .. } | surgbench_reports::ReportError::Plot { .. } => Failure::Runtime(e.to_string()),
                 _ => Failure::Usage(e.to_string()),
             })?;
-            println!("rendered {} files into {}", files.len(), dir.display());
+            say!("rendered {} files into {}", files.len(), dir.display());
             Ok(())
         })(),
         Cmd::Gate { update, config, baseline } => (|| {
             let cfg = gate::load_config(&config)?;
             let exe = std::env::current_exe().map_err(|e| Failure::Runtime(format!("cannot find own executable: {e}")))?;
             let verdicts = gate::run_gate(&exe, &cfg, &baseline, update).map_err(Failure::Runtime)?;
-            println!("{:<60} {:>16} {:>16} {:>8}", "workload", "instr/step", "baseline", "change");
+            say!("{:<60} {:>16} {:>16} {:>8}", "workload", "instr/step", "baseline", "change");
             let mut failed = 0;
             for v in &verdicts {
                 let (b, ch) = match v.baseline {
                     Some(b) => (format!("{b:.0}"), format!("{:+.2}%", 100.0 * (v.measured / b - 1.0))),
                     None => ("none".into(), "new".into()),
                 };
-                println!("{:<60} {:>16.0} {:>16} {:>8} {}", v.key, v.measured, b, ch, if v.pass { "ok" } else { "FAIL" });
+                say!("{:<60} {:>16.0} {:>16} {:>8} {}", v.key, v.measured, b, ch, if v.pass { "ok" } else { "FAIL" });
                 failed += usize::from(!v.pass);
             }
             if update {
-                println!("baseline written to {}", baseline.display());
+                say!("baseline written to {}", baseline.display());
                 Ok(())
             } else if failed > 0 {
                 Err(Failure::Runtime(format!(
@@ -354,7 +363,7 @@ fn main() -> ExitCode {
                     cfg.margin * 100.0
                 )))
             } else {
-                println!("gate passed ({} workloads, margin {:.0}%)", verdicts.len(), cfg.margin * 100.0);
+                say!("gate passed ({} workloads, margin {:.0}%)", verdicts.len(), cfg.margin * 100.0);
                 Ok(())
             }
         })(),

@@ -61,7 +61,7 @@ pub const ROD_KEYS: &[FidelityKey] = &[
     },
     FidelityKey {
         name: "damping",
-        doc: "velocity damping rate c (1/s): v <- v / (1 + c h) each substep; default 0",
+        doc: "velocity damping rate c (1/s): v <- v / (1 + c h) each substep; default 0, or 2 omega_1 (critical for the first bending mode) in static scenes",
     },
 ];
 
@@ -98,7 +98,7 @@ impl ModelFactory for PbdRodFactory {
     fn fidelity_keys(&self) -> &'static [FidelityKey] {
         ROD_KEYS
     }
-    fn default_fidelity(&self, _scene: &Scene) -> Fidelity {
+    fn default_fidelity(&self, scene: &Scene) -> Fidelity {
         let mut f = Fidelity {
             segments: Some(50),
             mesh_level: None,
@@ -107,6 +107,16 @@ impl ModelFactory for PbdRodFactory {
             extras: Default::default(),
         };
         f.extras.insert("substeps".into(), 4.0);
+        // Static scenes are run to equilibrium with the model's own damping:
+        // critical damping of the first cantilever bending mode,
+        // c = 2 omega_1, omega_1 = 1.875^2 sqrt(E I / (rho A L^4)).
+        if scene.settle.is_some()
+            && let Some(rod) = scene.rods().next()
+        {
+            let s = &rod.sections[0];
+            let w1 = 1.875f64.powi(2) * (s.youngs_modulus * s.second_moment() / (s.density * s.area() * rod.length.powi(4))).sqrt();
+            f.extras.insert("damping".into(), 2.0 * w1);
+        }
         f
     }
     fn check(&self, scene: &Scene) -> Result<(), Unsupported> {
