@@ -260,7 +260,9 @@ impl DerRod {
                     sc * 0.5 * (bend[i - 1][0] + bend[i][0]),
                     sc * 0.5 * (bend[i - 1][1] + bend[i][1]),
                 ],
-                kappa_bar: [k[0] * kb, k[1] * kb],
+                // Scene convention: Darboux components (Omega.d1, Omega.d2);
+                // Bergou's material curvature is (Omega.d2, -Omega.d1).
+                kappa_bar: [k[1] * kb, -k[0] * kb],
                 twist: 0.5 * (gj[i - 1] + gj[i]),
                 twist_bar: 0.0,
                 voronoi: l,
