@@ -1,0 +1,1 @@
+//! Point-primitive (meshless) tissue (work in progress).
