@@ -39,6 +39,8 @@ pub struct TissueObs {
     pub rest: Vec<Vec3>,
     /// Current positions (m).
     pub nodes: Vec<Vec3>,
+    /// Node velocities (m/s); empty for quasi-static models.
+    pub velocities: Vec<Vec3>,
     /// Current volume over rest volume, minus one.
     pub volume_error: f64,
     /// Count of inverted elements.
@@ -118,6 +120,7 @@ impl Observation {
         self.rods
             .iter()
             .flat_map(|r| r.velocities.iter())
+            .chain(self.tissues.iter().flat_map(|t| t.velocities.iter()))
             .map(|v| v.norm())
             .fold(0.0, f64::max)
     }

@@ -734,6 +734,7 @@ impl Model for PbdTissue {
             tissues: vec![TissueObs {
                 rest: self.rest.clone(),
                 nodes: self.x.clone(),
+                velocities: self.v.clone(),
                 volume_error,
                 inverted,
             }],
