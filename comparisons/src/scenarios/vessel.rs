@@ -654,6 +654,7 @@ struct BranchRun {
     depth: f64,
     wire_radius: f64,
     rotations: usize,
+    energy: f64,
     track: Mutex<Track>,
 }
 
@@ -684,8 +685,7 @@ impl ScenarioRun for BranchRun {
         m
     }
     fn energy_scale(&self) -> f64 {
-        // Tip bent by its J curvature and the whole wire over 1/R of the trunk.
-        1e-3
+        self.energy
     }
     fn length_scale(&self) -> f64 {
         0.1
@@ -772,6 +772,9 @@ impl Scenario for BranchSelection {
             depth: p.get("target_depth"),
             wire_radius: wire.radius,
             rotations: session.rotation_commands(),
+            // The whole wire bent at a 10 mm radius into a branch.
+            energy: wire.body_ei() * (l0 + session.timeline.keys.iter().map(|k| k.insertion).fold(0.0, f64::max))
+                / 1e-4,
             track: Mutex::new(Track::default()),
         }))
     }

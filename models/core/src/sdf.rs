@@ -55,6 +55,11 @@ pub trait Sdf: Send + Sync + std::fmt::Debug {
         }
         g
     }
+    /// Distance and gradient together (one closest-point search for the
+    /// analytic vessels; the contact response needs both).
+    fn distance_gradient(&self, p: &Vec3) -> (f64, Vec3) {
+        (self.distance(p), self.gradient(p))
+    }
 }
 
 /// A geometry could not be built: the message names the offending value.
@@ -87,10 +92,13 @@ impl Sdf for StraightTube {
         (d - self.axis * d.dot(&self.axis)).norm() - self.radius
     }
     fn gradient(&self, p: &Vec3) -> Vec3 {
+        self.distance_gradient(p).1
+    }
+    fn distance_gradient(&self, p: &Vec3) -> (f64, Vec3) {
         let d = p - self.origin;
         let r = d - self.axis * d.dot(&self.axis);
         let n = r.norm();
-        if n > 0.0 { r / n } else { Vec3::zeros() }
+        (n - self.radius, if n > 0.0 { r / n } else { Vec3::zeros() })
     }
 }
 
@@ -116,6 +124,11 @@ impl Sdf for TransformedSdf {
     fn gradient(&self, p: &Vec3) -> Vec3 {
         let q = self.iso.inverse_transform_point(&(*p).into()).coords;
         self.iso.rotation * self.inner.gradient(&q)
+    }
+    fn distance_gradient(&self, p: &Vec3) -> (f64, Vec3) {
+        let q = self.iso.inverse_transform_point(&(*p).into()).coords;
+        let (d, g) = self.inner.distance_gradient(&q);
+        (d, self.iso.rotation * g)
     }
 }
 
@@ -147,8 +160,17 @@ impl Sdf for SdfUnion {
         self.closest_part(p).map_or(f64::INFINITY, |(_, d)| d)
     }
     fn gradient(&self, p: &Vec3) -> Vec3 {
-        self.closest_part(p)
-            .map_or(Vec3::zeros(), |(i, _)| self.parts[i].gradient(p))
+        self.distance_gradient(p).1
+    }
+    fn distance_gradient(&self, p: &Vec3) -> (f64, Vec3) {
+        let mut best = (f64::INFINITY, Vec3::zeros());
+        for s in &self.parts {
+            let dg = s.distance_gradient(p);
+            if dg.0 < best.0 {
+                best = dg;
+            }
+        }
+        best
     }
 }
 
@@ -685,13 +707,16 @@ impl Sdf for SweptTube {
         self.project(p).phi
     }
     fn gradient(&self, p: &Vec3) -> Vec3 {
+        self.distance_gradient(p).1
+    }
+    fn distance_gradient(&self, p: &Vec3) -> (f64, Vec3) {
         let (h, ds_dp) = self.project_full(p);
         if !(h.radial > 0.0) {
-            return Vec3::zeros();
+            return (h.phi, Vec3::zeros());
         }
         let n = (p - h.point) / h.radial;
         let (_, slope) = self.radius_and_slope(h.s);
-        n - ds_dp * slope
+        (h.phi, n - ds_dp * slope)
     }
 }
 
@@ -745,19 +770,17 @@ impl MeshSdf {
 
 impl Sdf for MeshSdf {
     fn distance(&self, p: &Vec3) -> f64 {
-        let (q, inside) = self.closest(p);
-        let d = (p - q).norm();
-        if inside { -d } else { d }
+        self.distance_gradient(p).0
     }
     fn gradient(&self, p: &Vec3) -> Vec3 {
+        self.distance_gradient(p).1
+    }
+    fn distance_gradient(&self, p: &Vec3) -> (f64, Vec3) {
         let (q, inside) = self.closest(p);
         let d = p - q;
         let n = d.norm();
-        if n > 0.0 {
-            if inside { -d / n } else { d / n }
-        } else {
-            Vec3::zeros()
-        }
+        let sign = if inside { -1.0 } else { 1.0 };
+        (sign * n, if n > 0.0 { d * (sign / n) } else { Vec3::zeros() })
     }
 }
 
@@ -1020,14 +1043,17 @@ impl VoxelSdf {
 
 impl Sdf for VoxelSdf {
     fn distance(&self, p: &Vec3) -> f64 {
-        let q = self.clamp_to_box(p);
-        self.interp(&q).0 + (p - q).norm()
+        self.distance_gradient(p).0
     }
     fn gradient(&self, p: &Vec3) -> Vec3 {
+        self.distance_gradient(p).1
+    }
+    fn distance_gradient(&self, p: &Vec3) -> (f64, Vec3) {
         let q = self.clamp_to_box(p);
         let d = p - q;
         let n = d.norm();
-        if n > 0.0 { d / n } else { self.interp(&q).1 }
+        let (v, g) = self.interp(&q);
+        if n > 0.0 { (v + n, d / n) } else { (v, g) }
     }
 }
 

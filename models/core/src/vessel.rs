@@ -93,10 +93,17 @@ impl Sdf for Vessel {
         self.deepest(p).1
     }
     fn gradient(&self, p: &Vec3) -> Vec3 {
-        match self.deepest(p).0 {
-            None => self.trunk.gradient(p),
-            Some(i) => self.branches[i].tube.gradient(p),
+        self.distance_gradient(p).1
+    }
+    fn distance_gradient(&self, p: &Vec3) -> (f64, Vec3) {
+        let mut best = self.trunk.distance_gradient(p);
+        for b in &self.branches {
+            let dg = b.tube.distance_gradient(p);
+            if dg.0 < best.0 {
+                best = dg;
+            }
         }
+        best
     }
 }
 
@@ -115,8 +122,8 @@ pub const ARCH_ASCENDING: f64 = 50e-3;
 /// (50 mm, -z); lumen diameter 25 mm. The supra-aortic branches leave the top
 /// of the arch upwards at 60, 90 and 120 degrees along it: `left-subclavian`
 /// (9 mm, met first), `left-common-carotid` (7.5 mm), `brachiocephalic`
-/// (12 mm), each 50 mm long. Gravity along -z makes the patient stand; the
-/// scenarios decide.
+/// (12 mm), each 50 mm long. (With gravity along -z the patient would be
+/// standing: scenes choose their gravity.)
 pub fn aortic_arch() -> Vessel {
     let trunk = CenterlineBuilder::new(Vec3::zeros(), Vec3::z())
         .line(ARCH_DESCENDING)
