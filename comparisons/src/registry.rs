@@ -30,6 +30,8 @@ pub fn models() -> Vec<Registered> {
         surgbench_chainmail::ChainmailFactory,
         surgbench_pbd::PbdRodFactory,
         surgbench_pbd::PbdTissueFactory,
+        surgbench_fem::FemFactory,
+        surgbench_meshless::MeshlessFactory,
     ];
     if std::env::var("SURGBENCH_FAULTY_MODELS").as_deref() == Ok("1") {
         use crate::faulty;

@@ -233,6 +233,7 @@ fn run_repeat(
             }
         }
         let obs = model.observe();
+        run.observe_step(&obs);
         if let Some(w) = watchdog(&obs, run, e0, opts) {
             rep.trip = Some((w, t));
             rep.end = "watchdog".into();

@@ -169,6 +169,13 @@ pub trait ScenarioRun: Send {
     fn reference_tip(&self) -> Option<[f64; 3]> {
         None
     }
+    /// Called with every step's observation, in time order, outside the timed
+    /// region: scenarios with run-wide metrics (time to reach, peak force)
+    /// accumulate them here. A time earlier than the last seen starts a new
+    /// run (repeats).
+    fn observe_step(&self, obs: &Observation) {
+        let _ = obs;
+    }
     /// Penetration (m) past which the penetration watchdog trips.
     fn penetration_limit(&self) -> f64 {
         f64::INFINITY

@@ -477,6 +477,10 @@ fn push_with_rotations(speed: f64, duration: f64, step: f64, interval: f64, rot_
 }
 
 impl ScenarioRun for ArchRun {
+    fn observe_step(&self, obs: &Observation) {
+        // Run-wide metrics accumulate in the tracker (deduplicated by time).
+        let _ = self.score(obs);
+    }
     fn scene(&self) -> &Scene {
         &self.scene
     }
@@ -659,6 +663,10 @@ struct BranchRun {
 }
 
 impl ScenarioRun for BranchRun {
+    fn observe_step(&self, obs: &Observation) {
+        // Run-wide metrics accumulate in the tracker (deduplicated by time).
+        let _ = self.score(obs);
+    }
     fn scene(&self) -> &Scene {
         &self.scene
     }
@@ -757,7 +765,8 @@ impl Scenario for BranchSelection {
         let mut rod = wire.rod(l0, base)?;
         let tip = rod.sections.pop().expect("two sections");
         rod.sections.push(wire.section(l0 - jl, tip.youngs_modulus, [0.0; 2]));
-        rod.sections.push(wire.section(l0, tip.youngs_modulus, [kappa, 0.0]));
+        // Darboux component on d2 turns the tangent towards +d1 (local y).
+        rod.sections.push(wire.section(l0, tip.youngs_modulus, [0.0, kappa]));
         let mut scene = Scene::empty(self.id());
         scene.duration = p.get("duration");
         scene.bodies.push(rod.into());
@@ -872,6 +881,10 @@ struct FlowRun {
 }
 
 impl ScenarioRun for FlowRun {
+    fn observe_step(&self, obs: &Observation) {
+        // Run-wide metrics accumulate in the tracker (deduplicated by time).
+        let _ = self.score(obs);
+    }
     fn scene(&self) -> &Scene {
         &self.scene
     }
@@ -1062,6 +1075,10 @@ struct CapstanRun {
 }
 
 impl ScenarioRun for CapstanRun {
+    fn observe_step(&self, obs: &Observation) {
+        // Run-wide metrics accumulate in the tracker (deduplicated by time).
+        let _ = self.score(obs);
+    }
     fn scene(&self) -> &Scene {
         &self.scene
     }
@@ -1278,6 +1295,10 @@ struct StickRun {
 }
 
 impl ScenarioRun for StickRun {
+    fn observe_step(&self, obs: &Observation) {
+        // Run-wide metrics accumulate in the tracker (deduplicated by time).
+        let _ = self.score(obs);
+    }
     fn scene(&self) -> &Scene {
         &self.scene
     }
@@ -1521,6 +1542,10 @@ fn push_pull_rotate(v: f64, duration: f64) -> ControlTimeline {
 }
 
 impl ScenarioRun for CoronaryRun {
+    fn observe_step(&self, obs: &Observation) {
+        // Run-wide metrics accumulate in the tracker (deduplicated by time).
+        let _ = self.score(obs);
+    }
     fn scene(&self) -> &Scene {
         &self.scene
     }

@@ -262,6 +262,33 @@ pub trait FlowField: Send + Sync + std::fmt::Debug {
     fn velocity(&self, p: &Vec3) -> Vec3;
 }
 
+/// If `iso`'s rotation maps world axes onto world axes (a signed
+/// permutation), the source axis of each new axis; else `None`.
+pub fn axis_permutation(iso: &Iso3) -> Option<[usize; 3]> {
+    let r = iso.rotation.to_rotation_matrix();
+    let m = r.matrix();
+    let mut perm = [0usize; 3];
+    for i in 0..3 {
+        let j = (0..3).find(|&j| (m[(i, j)].abs() - 1.0).abs() < 1e-12)?;
+        perm[i] = j;
+    }
+    Some(perm)
+}
+
+/// A flow field moved rigidly: `v'(p) = R v(T^-1 p)`.
+#[derive(Debug, Clone)]
+pub struct TransformedFlow {
+    inner: Arc<dyn FlowField>,
+    iso: Iso3,
+}
+
+impl FlowField for TransformedFlow {
+    fn velocity(&self, p: &Vec3) -> Vec3 {
+        let q = self.iso.inverse_transform_point(&(*p).into()).coords;
+        self.iso.rotation * self.inner.velocity(&q)
+    }
+}
+
 /// Everything around the bodies.
 #[derive(Debug, Clone, Default)]
 pub struct Environment {
@@ -527,14 +554,29 @@ impl Scene {
                     for (_, d) in &mut t.driven_nodes {
                         *d = rot * *d;
                     }
-                    // Axis-aligned partial constraints do not rotate; a
-                    // transformed scene keeps them only if the rotation maps
-                    // axes to axes, which `transformed` cannot guarantee.
+                    // Axis-aligned partial constraints: a rotation that maps
+                    // axes to axes permutes them; any other rotation cannot
+                    // be expressed with world-axis flags, and they are kept
+                    // as they are (see `axis_permutation`).
+                    if let Some(perm) = axis_permutation(iso) {
+                        for (_, axes) in &mut t.partial_fixed {
+                            let old = *axes;
+                            for (i, j) in perm.iter().enumerate() {
+                                axes[i] = old[*j];
+                            }
+                        }
+                    }
                 }
             }
         }
         if let Some(v) = &self.environment.vessel {
             s.environment.vessel = Some(Arc::new(TransformedSdf::new(v.clone(), *iso)));
+        }
+        if let Some(f) = &self.environment.flow {
+            s.environment.flow = Some(Arc::new(TransformedFlow {
+                inner: f.clone(),
+                iso: *iso,
+            }));
         }
         s
     }

@@ -1,6 +1,6 @@
 //! The harness contract: [`DerFactory`] and [`DerModel`].
 
-use crate::rod::{DerParams, DerRod, Integrator, TwistDynamics};
+use crate::rod::{DEFAULT_FRICTION_CREEP, DerParams, DerRod, Integrator, TwistDynamics};
 use surgbench_core::{
     BuildError, Capability, DeviceCommand, EnergyProbe, Family, Fidelity, FidelityKey, Model, ModelFactory,
     Observation, Scene, SimError, StepStats, Unsupported,
@@ -34,6 +34,10 @@ const KEYS: &[FidelityKey] = &[
     FidelityKey {
         name: "tolerance",
         doc: "Newton tolerance on the update (positions / rod length, angles in rad), default 1e-9",
+    },
+    FidelityKey {
+        name: "friction_creep",
+        doc: "stick-slip width of the smoothed friction as a creep speed (m/s), default 1e-6",
     },
 ];
 
@@ -163,6 +167,13 @@ impl ModelFactory for DerFactory {
                 format!("must be in (0, 1), got {tolerance}"),
             ));
         }
+        let creep = f.extra("friction_creep", DEFAULT_FRICTION_CREEP);
+        if !(creep > 0.0 && creep.is_finite()) {
+            return Err(BuildError::bad(
+                "friction_creep",
+                format!("must be > 0 m/s, got {creep}"),
+            ));
+        }
         rod.params = DerParams {
             integrator: if flag("integrator")? {
                 Integrator::Newmark
@@ -177,6 +188,7 @@ impl ModelFactory for DerFactory {
             damping,
             max_iterations: f.iterations.unwrap_or(25),
             tolerance,
+            friction_creep: creep,
         };
         rod.gravity = scene.gravity;
         rod.set_vessel(scene.environment.vessel.clone(), scene.environment.contact);

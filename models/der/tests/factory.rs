@@ -47,6 +47,8 @@ fn bad_fidelity_is_a_value_not_a_panic() {
         &["damping=-1"],
         &["tolerance=2"],
         &["segments=1"],
+        &["friction_creep=0"],
+        &["friction_creep=-1e-6"],
     ] {
         let fid = Fidelity::parse_pairs(pairs).unwrap();
         match f.build(&scene, &fid) {

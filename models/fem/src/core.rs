@@ -1,0 +1,280 @@
+//! The discretized solid: elements, lumped mass, per-element state, parallel
+//! evaluation of energy, forces and Jacobian, and the lazy Jacobian update.
+
+use crate::FemError;
+use crate::assembly::Pattern;
+use crate::element::{ElemBlocks, Elements, Jacobian, QUAD4, project_psd, rotation_angle, warp};
+use crate::material::{Law, M3, Material};
+use rayon::prelude::*;
+use surgbench_core::{SolidMaterial, TetMesh, Vec3};
+
+/// Per-element state, written by one element only (fixed slot).
+#[derive(Clone)]
+struct ElemState {
+    f: [Vec3; 4],
+    energy: f64,
+    r: M3,
+    j: f64,
+    k: ElemBlocks,
+    /// Rotation the cached `k` was built with (lazy update).
+    r_used: M3,
+    has_k: bool,
+    updated: bool,
+}
+
+/// Result of one evaluation.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct EvalStats {
+    /// Total elastic energy (J).
+    pub energy: f64,
+    /// Elements with `det F <= 0`.
+    pub inverted: usize,
+    /// Elements whose Jacobian block was recomputed (lazy update).
+    pub updated: usize,
+}
+
+/// A tet mesh with a material: what statics and dynamics share.
+pub struct Solid {
+    /// Rest positions (m).
+    pub rest: Vec<Vec3>,
+    /// Element rest data.
+    pub elems: Elements,
+    /// Block sparsity pattern.
+    pub pat: Pattern,
+    /// Material law and Lamé parameters.
+    pub mat: Material,
+    /// Lumped nodal masses (kg): `rho V / 4` from each tet.
+    pub mass: Vec<f64>,
+    /// Rest stiffness per element (linear law), for warped / linear Jacobians.
+    k0: Vec<ElemBlocks>,
+    state: Vec<ElemState>,
+    /// Assembled block CSR Jacobian `K = d(-f)/dx`.
+    pub kmat: Vec<M3>,
+    /// Elastic nodal forces `-dE/dx` (N) from the last evaluation.
+    pub forces: Vec<Vec3>,
+    pool: rayon::ThreadPool,
+}
+
+impl Solid {
+    /// Discretize `mesh` with `law`; `threads` worker threads for assembly.
+    pub fn new(mesh: &TetMesh, material: &SolidMaterial, law: Law, threads: usize) -> Result<Self, FemError> {
+        mesh.validate().map_err(FemError::BadInput)?;
+        let m = material;
+        if !(m.youngs_modulus > 0.0 && m.youngs_modulus.is_finite()) {
+            return Err(FemError::BadInput(format!(
+                "youngs_modulus must be > 0 Pa, got {}",
+                m.youngs_modulus
+            )));
+        }
+        if !(m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5) {
+            return Err(FemError::BadInput(format!(
+                "poisson_ratio must be in (-1, 0.5), got {}",
+                m.poisson_ratio
+            )));
+        }
+        if !(m.density > 0.0 && m.density.is_finite()) {
+            return Err(FemError::BadInput(format!(
+                "density must be > 0 kg/m^3, got {}",
+                m.density
+            )));
+        }
+        if mesh.tets.is_empty() {
+            return Err(FemError::BadInput("mesh has no tets".into()));
+        }
+        let elems = Elements::new(mesh).map_err(FemError::BadInput)?;
+        let pat = Pattern::new(mesh.nodes.len(), &mesh.tets);
+        let mat = Material::new(law, m.youngs_modulus, m.poisson_ratio);
+        let mut mass = vec![0.0; mesh.nodes.len()];
+        for (e, t) in mesh.tets.iter().enumerate() {
+            for &i in t {
+                mass[i] += m.density * elems.vol[e] / 4.0;
+            }
+        }
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads.max(1))
+            .build()
+            .map_err(|e| FemError::BadInput(format!("cannot start {threads} threads: {e}")))?;
+        let k0: Vec<ElemBlocks> = pool.install(|| {
+            (0..elems.len())
+                .into_par_iter()
+                .map(|e| elems.rest_stiffness(mat.mu, mat.lambda, e))
+                .collect()
+        });
+        let nan = M3::repeat(f64::NAN);
+        let state = vec![
+            ElemState {
+                f: [Vec3::zeros(); 4],
+                energy: 0.0,
+                r: M3::identity(),
+                j: 1.0,
+                k: [M3::zeros(); 16],
+                r_used: nan,
+                has_k: false,
+                updated: false,
+            };
+            elems.len()
+        ];
+        let nb = pat.nnz_blocks();
+        Ok(Self {
+            rest: mesh.nodes.clone(),
+            elems,
+            mat,
+            mass,
+            k0,
+            state,
+            kmat: vec![M3::zeros(); nb],
+            forces: vec![Vec3::zeros(); pat.n],
+            pat,
+            pool,
+        })
+    }
+
+    /// Number of nodes.
+    pub fn n_nodes(&self) -> usize {
+        self.rest.len()
+    }
+
+    /// Run `f` inside this solid's thread pool.
+    pub fn install<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
+        self.pool.install(f)
+    }
+
+    /// Evaluate energy and elastic forces at `x`; with `jac`, also assemble
+    /// the Jacobian. `lazy_threshold` (rad, warped Jacobian only): keep an
+    /// element's cached block while its rotation moved less than this since
+    /// the block was built (0 = always rebuild).
+    pub fn evaluate(&mut self, x: &[Vec3], jac: Option<Jacobian>, lazy_threshold: f64) -> EvalStats {
+        let elems = &self.elems;
+        let mat = self.mat;
+        let k0 = &self.k0;
+        let state = &mut self.state;
+        let pool = &self.pool;
+        pool.install(|| {
+            state.par_iter_mut().with_min_len(64).enumerate().for_each(|(e, s)| {
+                let (en, f, kin) = elems.energy_forces(&mat, e, x);
+                s.f = f;
+                s.energy = en;
+                s.r = kin.r;
+                s.j = kin.j;
+                s.updated = jac.is_some();
+                match jac {
+                    None => {}
+                    Some(Jacobian::Warped) => {
+                        let r = if mat.law == Law::Linear { M3::identity() } else { kin.r };
+                        // The linear law's K0 never changes: build it once.
+                        let stale = s.has_k
+                            && (mat.law == Law::Linear
+                                || (lazy_threshold > 0.0 && rotation_angle(&s.r_used, &r) <= lazy_threshold));
+                        if !stale {
+                            s.k = if mat.law == Law::Linear {
+                                k0[e]
+                            } else {
+                                warp(&k0[e], &r)
+                            };
+                            s.r_used = r;
+                            s.has_k = true;
+                        } else {
+                            s.updated = false;
+                        }
+                    }
+                    Some(Jacobian::Exact) => {
+                        s.k = if mat.law == Law::Linear {
+                            k0[e]
+                        } else {
+                            elems.stiffness(&mat, e, &kin)
+                        };
+                        s.has_k = false;
+                    }
+                    Some(Jacobian::Projected) => {
+                        s.k = if mat.law == Law::Linear {
+                            k0[e]
+                        } else {
+                            project_psd(&elems.stiffness(&mat, e, &kin))
+                        };
+                        s.has_k = false;
+                    }
+                }
+            });
+        });
+        let mut stats = EvalStats::default();
+        for s in state.iter() {
+            stats.energy += s.energy;
+            if s.j <= 0.0 {
+                stats.inverted += 1;
+            }
+        }
+        stats.updated = state.iter().filter(|s| s.updated).count();
+        let st = &self.state;
+        let pat = &self.pat;
+        let forces = &mut self.forces;
+        let kmat = &mut self.kmat;
+        pool.install(|| {
+            pat.reduce_vector(|e, a| st[e].f[a], forces);
+            if jac.is_some() {
+                pat.reduce_matrix(|e, ab| st[e].k[ab], kmat);
+            }
+        });
+        stats
+    }
+
+    /// Consistent nodal loads (N) of a body force density `b(X)` (N/m^3)
+    /// given in the rest configuration, integrated with the degree-2 rule
+    /// [`QUAD4`] against the linear shape functions.
+    pub fn body_loads(&self, b: &(dyn Fn(&Vec3) -> Vec3 + Sync)) -> Vec<Vec3> {
+        let mut out = vec![Vec3::zeros(); self.n_nodes()];
+        for (e, t) in self.elems.tets.iter().enumerate() {
+            let p = t.map(|i| self.rest[i]);
+            for q in QUAD4 {
+                let xq = p[0] * q[0] + p[1] * q[1] + p[2] * q[2] + p[3] * q[3];
+                let bq = b(&xq) * (self.elems.vol[e] / 4.0);
+                for a in 0..4 {
+                    out[t[a]] += bq * q[a];
+                }
+            }
+        }
+        out
+    }
+
+    /// Energy (J) and elastic forces `-dE/dx` (N) at `x`, sequentially and
+    /// without touching the cached state (for the energy probe).
+    pub fn energy_forces(&self, x: &[Vec3]) -> (f64, Vec<Vec3>) {
+        let mut e_sum = 0.0;
+        let mut per: Vec<[Vec3; 4]> = Vec::with_capacity(self.elems.len());
+        for e in 0..self.elems.len() {
+            let (en, f, _) = self.elems.energy_forces(&self.mat, e, x);
+            e_sum += en;
+            per.push(f);
+        }
+        let mut out = vec![Vec3::zeros(); self.n_nodes()];
+        self.pat.reduce_vector(|e, a| per[e][a], &mut out);
+        (e_sum, out)
+    }
+
+    /// `K y` with the assembled Jacobian (block CSR), in node order.
+    pub fn k_times(&self, y: &[Vec3]) -> Vec<Vec3> {
+        let pat = &self.pat;
+        let k = &self.kmat;
+        let mut out = vec![Vec3::zeros(); self.n_nodes()];
+        self.pool.install(|| {
+            out.par_iter_mut().with_min_len(256).enumerate().for_each(|(i, o)| {
+                let mut s = Vec3::zeros();
+                for bi in pat.row_ptr[i]..pat.row_ptr[i + 1] {
+                    s += k[bi] * y[pat.col[bi]];
+                }
+                *o = s;
+            });
+        });
+        out
+    }
+
+    /// Current volume over rest volume, minus one.
+    pub fn volume_error(&self, x: &[Vec3]) -> f64 {
+        let (mut v, mut v0) = (0.0, 0.0);
+        for (e, t) in self.elems.tets.iter().enumerate() {
+            let p = t.map(|i| x[i]);
+            v += surgbench_core::mesh::tet_volume(&p[0], &p[1], &p[2], &p[3]);
+            v0 += self.elems.vol[e];
+        }
+        v / v0 - 1.0
+    }
+}

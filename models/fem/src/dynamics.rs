@@ -1,0 +1,707 @@
+//! Time stepping and the harness model.
+//!
+//! Equation of motion with lumped mass `M`, Rayleigh damping
+//! `C = alpha M + beta K` and elastic force `f_el = -dE/dx`:
+//! `M a + C v = f_el(x) + f_g`. The end-of-step state `x` is found by
+//! Newton iterations on `g(x) = f_el(x) + f_g - M a(x) - C v(x) = 0` where
+//! `a(x)`, `v(x)` are the integrator's affine update rules:
+//!
+//! * Newmark (`beta_N = 1/4`, `gamma = 1/2`, average acceleration;
+//!   Newmark 1959): `a = (x - x_n - dt v_n)/(beta_N dt^2) - (1/(2 beta_N) - 1) a_n`,
+//!   `v = v_n + dt ((1 - gamma) a_n + gamma a)`;
+//! * backward Euler: `v = (x - x_n)/dt`, `a = (v - v_n)/dt`.
+//!
+//! With one Newton iteration per step (the default, as in the
+//! needle-insertion seed) this is the linearly implicit scheme. The Jacobian
+//! is `(c_a + alpha c_v) M + (1 + beta c_v) K` with `c_a = da/dx`,
+//! `c_v = dv/dx`. For the corotational law `K` is the warped stiffness
+//! `R K0 R^T` (Müller and Gross 2004), and with `lazy_threshold > 0` an
+//! element's block is rebuilt only when its rotation moved more than that
+//! angle since the last rebuild; while no block changes, the Cholesky factor
+//! is reused as is, and while at most 10 % of the blocks changed, the stale
+//! factor preconditions a CG solve on the current matrix (refactorizing
+//! if that CG does not reach 1e-10 in 25 iterations, and on the next step
+//! once it needs more than 6).
+
+use crate::FemError;
+use crate::assembly::{LinearSolver, Ordering, System};
+use crate::core::Solid;
+use crate::element::Jacobian;
+use crate::material::Law;
+use crate::statics::{Constraint, StaticParams, dof_conditions, equilibrate};
+use surgbench_core::{
+    BuildError, Capability, DeviceCommand, EnergyObs, EnergyProbe, Family, Fidelity, FidelityKey, Model, ModelFactory,
+    Observation, Scene, SimError, StepStats, TissueBody, TissueObs, Vec3,
+};
+
+/// Relative residual of the stale-factor-preconditioned CG used while the
+/// lazy update changed few elements (below it the solve is as good as a
+/// direct one for a one-Newton-step scheme).
+const REUSE_TOL: f64 = 1e-10;
+/// Iteration cap of that CG; past it the matrix is refactorized.
+const REUSE_ITERS: usize = 25;
+/// When that CG needs more iterations than this, the next step refactorizes.
+const REFRESH_ITERS: usize = 6;
+
+/// Time integrator.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Integrator {
+    /// Newmark average acceleration (`beta = 1/4`, `gamma = 1/2`).
+    Newmark,
+    /// Backward (implicit) Euler.
+    BackwardEuler,
+    /// Static equilibrium at every step (full Newton; velocities zero).
+    QuasiStatic,
+}
+
+/// Settings of a [`FemModel`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DynParams {
+    /// Constitutive law.
+    pub law: Law,
+    /// Time integrator.
+    pub integrator: Integrator,
+    /// Linear solver.
+    pub solver: LinearSolver,
+    /// Lazy Jacobian threshold (rad); 0 rebuilds every element every step.
+    pub lazy_threshold: f64,
+    /// Rayleigh mass coefficient `alpha` (1/s).
+    pub rayleigh_mass: f64,
+    /// Rayleigh stiffness coefficient `beta` (s).
+    pub rayleigh_stiffness: f64,
+    /// Newton iterations per dynamic step (iteration cap for quasi-static).
+    pub iterations: usize,
+    /// Quasi-static Newton tolerance (relative force residual).
+    pub tol: f64,
+    /// Assembly threads.
+    pub threads: usize,
+}
+
+impl Default for DynParams {
+    fn default() -> Self {
+        Self {
+            law: Law::Corotational,
+            integrator: Integrator::Newmark,
+            solver: LinearSolver::default(),
+            lazy_threshold: 0.0,
+            rayleigh_mass: 0.0,
+            rayleigh_stiffness: 0.0,
+            iterations: 1,
+            tol: 1e-9,
+            threads: 2,
+        }
+    }
+}
+
+/// A FEM tissue body stepping in time.
+pub struct FemModel {
+    solid: Solid,
+    sys: System,
+    p: DynParams,
+    dt: f64,
+    t: f64,
+    x: Vec<Vec3>,
+    v: Vec<Vec3>,
+    a: Vec<Vec3>,
+    /// Per-DOF displacement at full command (m).
+    uc: Vec<f64>,
+    driven: Vec<usize>,
+    gravity_load: Vec<Vec3>,
+    /// Pressure faces (outward node order) and pressures at full command (Pa).
+    pressure: Vec<([usize; 3], f64)>,
+    /// Coefficients of the cached matrix `(c_k, c_m)`.
+    cached: Option<(f64, f64)>,
+    hand_force: Vec3,
+    inverted: usize,
+    /// Some Jacobian block changed since the cached factorization.
+    factor_stale: bool,
+    /// Elements whose Jacobian was rebuilt in the last step.
+    pub last_updated: usize,
+}
+
+impl FemModel {
+    /// Build from a tissue body (rest mesh, material, fixed and driven
+    /// nodes), gravity (m/s^2), time step (s) and settings.
+    pub fn new(body: &TissueBody, gravity: Vec3, dt: f64, p: DynParams) -> Result<Self, FemError> {
+        if !(dt > 0.0 && dt.is_finite()) {
+            return Err(FemError::BadInput(format!("dt must be > 0 s, got {dt}")));
+        }
+        if p.iterations == 0
+            || !(p.lazy_threshold >= 0.0)
+            || !(p.rayleigh_mass >= 0.0)
+            || !(p.rayleigh_stiffness >= 0.0)
+        {
+            return Err(FemError::BadInput(format!("bad dynamic settings {p:?}")));
+        }
+        let solid = Solid::new(&body.mesh, &body.material, p.law, p.threads)?;
+        let n = solid.n_nodes();
+        let mut cons: Vec<Constraint> = body.fixed_nodes.iter().map(|&i| Constraint::fixed(i)).collect();
+        cons.extend(body.partial_fixed.iter().map(|&(i, axes)| Constraint {
+            node: i,
+            axes,
+            displacement: Vec3::zeros(),
+        }));
+        for (f, p) in &body.pressure_faces {
+            if f.iter().any(|&i| i >= n) || !p.is_finite() {
+                return Err(FemError::BadInput(format!(
+                    "pressure face {f:?} ({p} Pa) is out of range"
+                )));
+            }
+        }
+        cons.extend(body.driven_nodes.iter().map(|&(i, d)| Constraint::displaced(i, d)));
+        let (free, uc) = dof_conditions(n, &cons)?;
+        let rho = body.material.density;
+        let gravity_load = solid.body_loads(&move |_: &Vec3| gravity * rho);
+        let sys = System::new(&solid.pat, free);
+        let x = solid.rest.clone();
+        Ok(Self {
+            solid,
+            sys,
+            p,
+            dt,
+            t: 0.0,
+            x,
+            v: vec![Vec3::zeros(); n],
+            a: vec![Vec3::zeros(); n],
+            uc,
+            driven: body.driven_nodes.iter().map(|d| d.0).collect(),
+            gravity_load,
+            pressure: body.pressure_faces.clone(),
+            cached: None,
+            hand_force: Vec3::zeros(),
+            inverted: 0,
+            factor_stale: true,
+            last_updated: 0,
+        })
+    }
+
+    /// Current node positions (m).
+    pub fn positions(&self) -> &[Vec3] {
+        &self.x
+    }
+
+    /// Non-zeros of the Cholesky factor (after the first factorization).
+    pub fn factor_nnz(&self) -> Option<usize> {
+        self.sys.factor_nnz()
+    }
+
+    /// Numeric factorizations and CG iterations so far.
+    pub fn solver_counts(&self) -> (usize, usize) {
+        (self.sys.factorizations, self.sys.cg_iterations)
+    }
+
+    /// Follower pressure forces (N per DOF) on the deformed faces at `x`,
+    /// scaled by `s`: each face node gets `-s p A n / 3`.
+    fn pressure_forces(pressure: &[([usize; 3], f64)], s: f64, x: &[Vec3]) -> Vec<f64> {
+        let mut out = vec![0.0; 3 * x.len()];
+        for (f, p) in pressure {
+            let [a, b, c] = f.map(|i| x[i]);
+            let an = (b - a).cross(&(c - a)) * (-0.5 * s * p / 3.0);
+            for &i in f {
+                for k in 0..3 {
+                    out[3 * i + k] += an[k];
+                }
+            }
+        }
+        out
+    }
+
+    fn set_constrained(&mut self, s: f64) {
+        for d in 0..self.uc.len() {
+            if !self.sys.free[d] {
+                self.x[d / 3][d % 3] = self.solid.rest[d / 3][d % 3] + s * self.uc[d];
+            }
+        }
+    }
+
+    fn fail(&self, reason: impl Into<String>) -> SimError {
+        SimError::SolverFailed {
+            t: self.t,
+            reason: reason.into(),
+        }
+    }
+
+    /// One step of length `dt` (s) with the command scale `s` for the driven
+    /// displacements.
+    pub fn advance(&mut self, dt: f64, s: f64) -> Result<StepStats, SimError> {
+        if !(dt > 0.0 && dt.is_finite() && s.is_finite()) {
+            return Err(self.fail(format!("bad step dt={dt} s, command {s}")));
+        }
+        let t_end = self.t + dt;
+        let stats = if self.p.integrator == Integrator::QuasiStatic {
+            self.set_constrained(s);
+            let load: Vec<f64> = self.gravity_load.iter().flat_map(|f| [f.x, f.y, f.z]).collect();
+            let sp = StaticParams {
+                load_steps: 1,
+                tol: self.p.tol,
+                max_newton: self.p.iterations.max(1),
+                solver: self.p.solver,
+                threads: self.p.threads,
+            };
+            let mut x = std::mem::take(&mut self.x);
+            let pressure = self.pressure.clone();
+            let follower = move |x: &[Vec3]| Self::pressure_forces(&pressure, s, x);
+            let fol: Option<crate::statics::Follower> = if self.pressure.is_empty() {
+                None
+            } else {
+                Some(&follower)
+            };
+            let res = equilibrate(&mut self.solid, &mut self.sys, &mut x, &load, fol, &sp, 1);
+            self.x = x;
+            self.cached = None;
+            let nt = res.map_err(|e| SimError::SolverFailed {
+                t: t_end,
+                reason: e.to_string(),
+            })?;
+            self.hand_force = self
+                .driven
+                .iter()
+                .map(|&i| Vec3::new(nt.r[3 * i], nt.r[3 * i + 1], nt.r[3 * i + 2]))
+                .sum();
+            self.inverted = nt.inverted;
+            self.v.iter_mut().for_each(|v| *v = Vec3::zeros());
+            self.a.iter_mut().for_each(|a| *a = Vec3::zeros());
+            StepStats {
+                iterations: nt.iterations as u32,
+                residual: nt.residual,
+                converged: true,
+            }
+        } else {
+            self.dynamic_step(dt, s, t_end)?
+        };
+        self.t = t_end;
+        if !self
+            .x
+            .iter()
+            .chain(self.v.iter())
+            .all(|p| p.iter().all(|c| c.is_finite()))
+        {
+            return Err(SimError::Diverged {
+                t: self.t,
+                reason: "non-finite node position or velocity".into(),
+            });
+        }
+        if self.p.law == Law::NeoHookean && self.inverted > 0 {
+            return Err(SimError::Diverged {
+                t: self.t,
+                reason: format!("{} elements inverted (neo-Hookean is undefined there)", self.inverted),
+            });
+        }
+        Ok(stats)
+    }
+
+    fn dynamic_step(&mut self, dt: f64, s: f64, t_end: f64) -> Result<StepStats, SimError> {
+        let n = self.solid.n_nodes();
+        let (xn, vn, an) = (self.x.clone(), self.v.clone(), self.a.clone());
+        // a(x) = c_a (x - x_n) + a0, v(x) = c_v (x - x_n) + v0.
+        let (c_a, c_v, a0, v0): (f64, f64, Vec<Vec3>, Vec<Vec3>) = match self.p.integrator {
+            Integrator::Newmark => {
+                let (b, g) = (0.25, 0.5);
+                let c_a = 1.0 / (b * dt * dt);
+                let a0: Vec<Vec3> = (0..n).map(|i| -vn[i] / (b * dt) - an[i] * (0.5 / b - 1.0)).collect();
+                let v0: Vec<Vec3> = (0..n).map(|i| vn[i] + (an[i] * (1.0 - g) + a0[i] * g) * dt).collect();
+                (c_a, g / (b * dt), a0, v0)
+            }
+            _ => (
+                1.0 / (dt * dt),
+                1.0 / dt,
+                vn.iter().map(|v| -v / dt).collect(),
+                vec![Vec3::zeros(); n],
+            ),
+        };
+        let (alpha, beta) = (self.p.rayleigh_mass, self.p.rayleigh_stiffness);
+        let c_m = c_a + alpha * c_v;
+        let c_k = 1.0 + beta * c_v;
+        self.set_constrained(s);
+        let jac = match self.p.law {
+            Law::NeoHookean => Jacobian::Exact,
+            _ => Jacobian::Warped,
+        };
+        let mut last_r = vec![0.0; 3 * n];
+        let mut last_dx = vec![0.0; 3 * n];
+        let mut res = 0.0;
+        let mut cg_its = 0;
+        let mut updated = 0;
+        for _ in 0..self.p.iterations {
+            let st = self.solid.evaluate(&self.x, Some(jac), self.p.lazy_threshold);
+            updated += st.updated;
+            self.inverted = st.inverted;
+            let dxs: Vec<Vec3> = (0..n).map(|i| self.x[i] - xn[i]).collect();
+            let vel: Vec<Vec3> = (0..n).map(|i| v0[i] + dxs[i] * c_v).collect();
+            let kv = if beta > 0.0 {
+                self.solid.k_times(&vel)
+            } else {
+                vec![Vec3::zeros(); n]
+            };
+            let m = &self.solid.mass;
+            let pf = Self::pressure_forces(&self.pressure, s, &self.x);
+            let mut r = vec![0.0; 3 * n];
+            for i in 0..n {
+                let acc = a0[i] + dxs[i] * c_a;
+                let ri = self.solid.forces[i] + self.gravity_load[i] - (acc + vel[i] * alpha) * m[i] - kv[i] * beta;
+                r[3 * i] = ri.x + pf[3 * i];
+                r[3 * i + 1] = ri.y + pf[3 * i + 1];
+                r[3 * i + 2] = ri.z + pf[3 * i + 2];
+            }
+            let mut dx = r.clone();
+            match self.p.solver {
+                LinearSolver::Cholesky(ord) => {
+                    let same = self.cached == Some((c_k, c_m)) && self.sys.has_factorization();
+                    let mut solved = false;
+                    self.factor_stale |= st.updated > 0;
+                    if same && !self.factor_stale {
+                        // Nothing changed: reuse the factorization as is.
+                        self.sys.solve_cholesky(&mut dx);
+                        solved = true;
+                    } else if same && self.p.lazy_threshold > 0.0 && 10 * st.updated <= self.solid.elems.len() {
+                        // Few blocks changed: the stale factor preconditions CG
+                        // on the current matrix (REUSE_TOL, REUSE_ITERS).
+                        let mut sol = vec![0.0; 3 * n];
+                        let (sys, solid) = (&mut self.sys, &self.solid);
+                        let out = solid.install(|| {
+                            sys.solve_factor_pcg(
+                                &solid.pat,
+                                &solid.kmat,
+                                c_k,
+                                &solid.mass,
+                                c_m,
+                                &r,
+                                &mut sol,
+                                REUSE_TOL,
+                                REUSE_ITERS,
+                            )
+                        });
+                        if let Some((it, rel)) = out {
+                            cg_its += it;
+                            if rel <= REUSE_TOL {
+                                dx = sol;
+                                solved = true;
+                            }
+                            // The factor has aged: refresh it on the next step.
+                            if it > REFRESH_ITERS {
+                                self.cached = None;
+                            }
+                        }
+                    }
+                    if !solved {
+                        self.sys
+                            .set_values(&self.solid.pat, &self.solid.kmat, c_k, &self.solid.mass, c_m);
+                        self.cached = Some((c_k, c_m));
+                        if let Err(e) = self.sys.factorize(&self.solid.pat, ord) {
+                            // Indefinite exact Hessian (neo-Hookean): retry projected.
+                            self.solid.evaluate(&self.x, Some(Jacobian::Projected), 0.0);
+                            self.sys
+                                .set_values(&self.solid.pat, &self.solid.kmat, c_k, &self.solid.mass, c_m);
+                            self.cached = None;
+                            self.sys
+                                .factorize(&self.solid.pat, ord)
+                                .map_err(|_| SimError::SolverFailed {
+                                    t: t_end,
+                                    reason: e.clone(),
+                                })?;
+                        }
+                        self.sys.solve_cholesky(&mut dx);
+                    }
+                }
+                LinearSolver::Cg { tol, max_iter } => {
+                    self.sys
+                        .set_values(&self.solid.pat, &self.solid.kmat, c_k, &self.solid.mass, c_m);
+                    let mut sol = vec![0.0; 3 * n];
+                    let (sys, solid) = (&mut self.sys, &self.solid);
+                    let (it, rel) = solid.install(|| {
+                        sys.solve_cg(
+                            &solid.pat,
+                            &solid.kmat,
+                            c_k,
+                            &solid.mass,
+                            c_m,
+                            &r,
+                            &mut sol,
+                            tol,
+                            max_iter,
+                        )
+                    });
+                    cg_its += it;
+                    res = rel;
+                    dx = sol;
+                }
+            }
+            for i in 0..n {
+                self.x[i] += Vec3::new(dx[3 * i], dx[3 * i + 1], dx[3 * i + 2]);
+            }
+            last_r = r;
+            last_dx = dx;
+        }
+        self.last_updated = updated;
+        for i in 0..n {
+            let d = self.x[i] - xn[i];
+            self.a[i] = a0[i] + d * c_a;
+            self.v[i] = v0[i] + d * c_v;
+        }
+        // Reaction on the driven nodes, linearized to the end of the step:
+        // r(x + dx) ~ r - c_k K dx (the mass term vanishes on constrained DOFs).
+        let dxv: Vec<Vec3> = (0..n)
+            .map(|i| Vec3::new(last_dx[3 * i], last_dx[3 * i + 1], last_dx[3 * i + 2]))
+            .collect();
+        let kdx = self.solid.k_times(&dxv);
+        self.hand_force = self
+            .driven
+            .iter()
+            .map(|&i| Vec3::new(last_r[3 * i], last_r[3 * i + 1], last_r[3 * i + 2]) - kdx[i] * c_k)
+            .sum();
+        Ok(StepStats {
+            iterations: if cg_its > 0 {
+                cg_its as u32
+            } else {
+                self.p.iterations as u32
+            },
+            residual: res,
+            converged: true,
+        })
+    }
+
+    fn energies(&self) -> EnergyObs {
+        let kinetic = 0.5
+            * (0..self.x.len())
+                .map(|i| self.solid.mass[i] * self.v[i].norm_squared())
+                .sum::<f64>();
+        let (elastic, _) = self.solid.energy_forces(&self.x);
+        let external = -(0..self.x.len())
+            .map(|i| self.gravity_load[i].dot(&(self.x[i] - self.solid.rest[i])))
+            .sum::<f64>();
+        EnergyObs {
+            kinetic,
+            elastic,
+            external,
+        }
+    }
+}
+
+impl Model for FemModel {
+    fn step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
+        self.advance(dt, cmd.insertion)
+    }
+
+    /// Tissue nodes, volume error, inverted count, energies, and
+    /// `hand_force`: the force the tissue exerts on whatever drives the
+    /// driven nodes (N), i.e. minus the total driving force.
+    fn observe(&self) -> Observation {
+        Observation {
+            time: self.t,
+            tissues: vec![TissueObs {
+                rest: self.solid.rest.clone(),
+                nodes: self.x.clone(),
+                velocities: self.v.clone(),
+                volume_error: self.solid.volume_error(&self.x),
+                inverted: self.inverted,
+            }],
+            hand_force: self.hand_force,
+            energy: self.energies(),
+            ..Default::default()
+        }
+    }
+
+    fn dt(&self) -> f64 {
+        self.dt
+    }
+
+    fn energy_probe(&mut self) -> Option<&mut dyn EnergyProbe> {
+        Some(self)
+    }
+}
+
+impl EnergyProbe for FemModel {
+    fn coords(&self) -> Vec<f64> {
+        self.x.iter().flat_map(|p| [p.x, p.y, p.z]).collect()
+    }
+    fn set_coords(&mut self, q: &[f64]) {
+        for (i, p) in self.x.iter_mut().enumerate() {
+            if 3 * i + 2 < q.len() {
+                *p = Vec3::new(q[3 * i], q[3 * i + 1], q[3 * i + 2]);
+            }
+        }
+    }
+    /// Elastic energy plus the potential of gravity (J). Pressure faces are
+    /// follower (non-conservative) loads and are in neither this nor
+    /// [`EnergyProbe::forces`].
+    fn potential(&self) -> f64 {
+        let e = self.energies();
+        e.elastic + e.external
+    }
+    fn forces(&self) -> Vec<f64> {
+        let (_, f) = self.solid.energy_forces(&self.x);
+        f.iter()
+            .zip(&self.gravity_load)
+            .flat_map(|(a, g)| [a.x + g.x, a.y + g.y, a.z + g.z])
+            .collect()
+    }
+    fn free(&self) -> Vec<usize> {
+        (0..self.sys.free.len()).filter(|&d| self.sys.free[d]).collect()
+    }
+}
+
+/// The `fem` model: corotational (default), linear or neo-Hookean tetrahedra.
+pub struct FemFactory;
+
+const KEYS: &[FidelityKey] = &[
+    FidelityKey {
+        name: "material_law",
+        doc: "0 corotational (Irving 2004, default), 1 linear small strain, 2 neo-Hookean (Bonet-Wood)",
+    },
+    FidelityKey {
+        name: "integrator",
+        doc: "0 Newmark beta=1/4 (default for dynamic scenes), 1 backward Euler, 2 quasi-static (default when the scene settles)",
+    },
+    FidelityKey {
+        name: "solver",
+        doc: "0 sparse Cholesky (faer, default), 1 block-Jacobi PCG",
+    },
+    FidelityKey {
+        name: "ordering",
+        doc: "Cholesky fill ordering: 0 AMD (default), 1 reverse Cuthill-McKee",
+    },
+    FidelityKey {
+        name: "cg_tol",
+        doc: "PCG relative residual tolerance (default 1e-8)",
+    },
+    FidelityKey {
+        name: "lazy_threshold",
+        doc: "lazy Jacobian: rebuild an element's block when its rotation moved more than this (rad); default 0 = always",
+    },
+    FidelityKey {
+        name: "rayleigh_mass",
+        doc: "Rayleigh damping alpha (1/s), default 0",
+    },
+    FidelityKey {
+        name: "rayleigh_stiffness",
+        doc: "Rayleigh damping beta (s), default 0",
+    },
+    FidelityKey {
+        name: "threads",
+        doc: "assembly threads (default 2); results are identical for any count",
+    },
+];
+
+impl FemFactory {
+    fn params(&self, scene: &Scene, f: &Fidelity) -> Result<(DynParams, f64), BuildError> {
+        let full = self.default_fidelity(scene).merged(f);
+        full.check_extras(KEYS).map_err(|e| BuildError::bad("fidelity", e.0))?;
+        // `mesh_level` is the scenario's knob: it builds the scene's mesh at
+        // that level (`Scenario::instantiate_at`); fem runs on that mesh.
+        let code = |name: &str, max: f64| -> Result<f64, BuildError> {
+            let v = full.extra(name, 0.0);
+            if v < 0.0 || v > max || v.fract() != 0.0 {
+                Err(BuildError::bad(
+                    name,
+                    format!("must be an integer in 0..={max}, got {v}"),
+                ))
+            } else {
+                Ok(v)
+            }
+        };
+        let law = Law::from_code(code("material_law", 2.0)?).expect("range checked");
+        let integrator = match code("integrator", 2.0)? as usize {
+            0 => Integrator::Newmark,
+            1 => Integrator::BackwardEuler,
+            _ => Integrator::QuasiStatic,
+        };
+        let ordering = if code("ordering", 1.0)? == 1.0 {
+            Ordering::Rcm
+        } else {
+            Ordering::Amd
+        };
+        let cg_tol = full.extra("cg_tol", 1e-8);
+        if !(cg_tol > 0.0 && cg_tol < 1.0) {
+            return Err(BuildError::bad("cg_tol", format!("must be in (0, 1), got {cg_tol}")));
+        }
+        let solver = if code("solver", 1.0)? == 1.0 {
+            LinearSolver::Cg {
+                tol: cg_tol,
+                max_iter: 2000,
+            }
+        } else {
+            LinearSolver::Cholesky(ordering)
+        };
+        let nonneg = |name: &str| -> Result<f64, BuildError> {
+            let v = full.extra(name, 0.0);
+            if v >= 0.0 {
+                Ok(v)
+            } else {
+                Err(BuildError::bad(name, format!("must be >= 0, got {v}")))
+            }
+        };
+        let threads = full.extra("threads", 2.0);
+        if !(1.0..=64.0).contains(&threads) || threads.fract() != 0.0 {
+            return Err(BuildError::bad(
+                "threads",
+                format!("must be an integer in 1..=64, got {threads}"),
+            ));
+        }
+        let p = DynParams {
+            law,
+            integrator,
+            solver,
+            lazy_threshold: nonneg("lazy_threshold")?,
+            rayleigh_mass: nonneg("rayleigh_mass")?,
+            rayleigh_stiffness: nonneg("rayleigh_stiffness")?,
+            iterations: full.iterations.unwrap_or(1),
+            tol: 1e-9,
+            threads: threads as usize,
+        };
+        Ok((p, full.dt.unwrap_or(1e-3)))
+    }
+}
+
+impl ModelFactory for FemFactory {
+    fn id(&self) -> &'static str {
+        "fem"
+    }
+    fn description(&self) -> &'static str {
+        "linear-tet FEM tissue: corotational (Irving 2004) / linear / neo-Hookean, Newmark or backward Euler, sparse Cholesky or PCG"
+    }
+    fn family(&self) -> Family {
+        Family::Tissue
+    }
+    fn capabilities(&self) -> &'static [Capability] {
+        &[
+            Capability::Tissue,
+            Capability::HapticForce,
+            Capability::PressureLoad,
+            Capability::RollerConstraint,
+        ]
+    }
+    fn fidelity_keys(&self) -> &'static [FidelityKey] {
+        KEYS
+    }
+    /// `dt = 1 ms`; one Newton iteration per dynamic step, up to 30 for a
+    /// settling (quasi-static) scene. The mesh is the scene's.
+    fn default_fidelity(&self, scene: &Scene) -> Fidelity {
+        let mut f = Fidelity {
+            dt: Some(1e-3),
+            ..Default::default()
+        };
+        if scene.settle.is_some() {
+            f.iterations = Some(30);
+            f.extras.insert("integrator".into(), 2.0);
+        } else {
+            f.iterations = Some(1);
+        }
+        f
+    }
+    fn build(&self, scene: &Scene, fidelity: &Fidelity) -> Result<Box<dyn Model>, BuildError> {
+        self.check(scene)?;
+        scene.validate().map_err(|e| BuildError::bad("scene", e))?;
+        let tissues: Vec<&TissueBody> = scene.tissues().collect();
+        if tissues.len() != 1 {
+            return Err(surgbench_core::Unsupported::new(format!(
+                "fem runs exactly one tissue body, the scene has {}",
+                tissues.len()
+            ))
+            .into());
+        }
+        let (p, dt) = self.params(scene, fidelity)?;
+        let m =
+            FemModel::new(tissues[0], scene.gravity, dt, p).map_err(|e| BuildError::bad("tissue", e.to_string()))?;
+        Ok(Box::new(m))
+    }
+}

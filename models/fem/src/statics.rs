@@ -1,0 +1,406 @@
+//! Quasi-static equilibrium: load stepping with full Newton to tolerance
+//! and a backtracking line search on the total potential energy.
+//!
+//! At load factor `s = k / load_steps` the prescribed displacements are
+//! `s u_c` and the loads `s f`; Newton solves `f_el(x) + s f = 0` on the
+//! free DOFs, where `f_el = -dE/dx` is the elastic force.
+
+use crate::FemError;
+use crate::assembly::{LinearSolver, System};
+use crate::core::Solid;
+use crate::element::Jacobian;
+use crate::material::Law;
+use surgbench_core::{SolidMaterial, TetMesh, Vec3};
+
+/// A Dirichlet condition on some axes of one node.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Constraint {
+    /// Node index.
+    pub node: usize,
+    /// Which axes (x, y, z) are prescribed.
+    pub axes: [bool; 3],
+    /// Displacement at full load (m); only the prescribed axes are used.
+    pub displacement: Vec3,
+}
+
+impl Constraint {
+    /// Node held at its rest position.
+    pub fn fixed(node: usize) -> Self {
+        Self {
+            node,
+            axes: [true; 3],
+            displacement: Vec3::zeros(),
+        }
+    }
+    /// Node moved by `u` (m) at full load.
+    pub fn displaced(node: usize, u: Vec3) -> Self {
+        Self {
+            node,
+            axes: [true; 3],
+            displacement: u,
+        }
+    }
+    /// One axis (0 = x, 1 = y, 2 = z) of a node moved by `value` (m); the
+    /// other axes stay free (e.g. a symmetry plane with `value = 0`).
+    pub fn axis(node: usize, axis: usize, value: f64) -> Self {
+        let mut axes = [false; 3];
+        let mut d = Vec3::zeros();
+        if axis < 3 {
+            axes[axis] = true;
+            d[axis] = value;
+        }
+        Self {
+            node,
+            axes,
+            displacement: d,
+        }
+    }
+}
+
+/// External loads at full load factor (dead loads, rest configuration).
+#[derive(Default)]
+pub struct Loads<'a> {
+    /// Body force density `b(X)` (N/m^3) at rest position `X` (e.g. `rho g`).
+    pub body_force: Option<&'a (dyn Fn(&Vec3) -> Vec3 + Sync)>,
+    /// Point forces on nodes (N), e.g. from [`pressure_loads`].
+    pub nodal: Vec<(usize, Vec3)>,
+}
+
+/// Nodal forces (N) of a uniform pressure `p` (Pa) on triangles: each node
+/// of a face gets `-p A n / 3` with `n` the face's outward unit normal
+/// (faces as returned by `mesh::boundary_faces`; positive `p` pushes into
+/// the body). Dead load on the rest geometry.
+pub fn pressure_loads(mesh: &TetMesh, faces: &[[usize; 3]], p: f64) -> Vec<(usize, Vec3)> {
+    let mut out = Vec::with_capacity(3 * faces.len());
+    for f in faces {
+        let [a, b, c] = f.map(|i| mesh.nodes[i]);
+        let an = (b - a).cross(&(c - a)) * 0.5; // area-weighted outward normal
+        for &i in f {
+            out.push((i, -an * (p / 3.0)));
+        }
+    }
+    out
+}
+
+/// Settings of [`solve_static`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StaticParams {
+    /// Number of equal load increments.
+    pub load_steps: usize,
+    /// Newton stops when the free-DOF force residual is below `tol` times
+    /// the largest of the step's first residual and the applied load (N/N).
+    pub tol: f64,
+    /// Newton iteration cap per load step.
+    pub max_newton: usize,
+    /// Linear solver for the Newton systems.
+    pub solver: LinearSolver,
+    /// Worker threads for assembly.
+    pub threads: usize,
+}
+
+impl Default for StaticParams {
+    fn default() -> Self {
+        Self {
+            load_steps: 1,
+            tol: 1e-9,
+            max_newton: 30,
+            solver: LinearSolver::default(),
+            threads: 2,
+        }
+    }
+}
+
+/// What [`solve_static`] found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StaticInfo {
+    /// Node displacements `x - X` (m).
+    pub displacements: Vec<Vec3>,
+    /// Force the constraints exert on the body at every node (N; zero at
+    /// free DOFs): `-(f_el + f_ext)` on constrained DOFs.
+    pub reactions: Vec<Vec3>,
+    /// Newton iterations of every load step.
+    pub newton_iterations: Vec<usize>,
+    /// Final relative residual.
+    pub residual: f64,
+    /// Elastic energy at equilibrium (J).
+    pub energy: f64,
+    /// Inverted elements at equilibrium.
+    pub inverted: usize,
+    /// Total CG iterations (0 with Cholesky).
+    pub linear_iterations: usize,
+    /// Newton iterations that fell back from the exact Jacobian to a
+    /// positive definite one (warped or projected).
+    pub jacobian_fallbacks: usize,
+}
+
+/// Free-DOF mask and per-DOF prescribed displacement from constraints.
+pub(crate) fn dof_conditions(n_nodes: usize, constraints: &[Constraint]) -> Result<(Vec<bool>, Vec<f64>), FemError> {
+    let mut free = vec![true; 3 * n_nodes];
+    let mut u = vec![0.0; 3 * n_nodes];
+    for c in constraints {
+        if c.node >= n_nodes {
+            return Err(FemError::BadInput(format!(
+                "constraint on node {} but the mesh has {n_nodes} nodes",
+                c.node
+            )));
+        }
+        if !c.displacement.iter().all(|v| v.is_finite()) {
+            return Err(FemError::BadInput(format!(
+                "constraint on node {} is not finite",
+                c.node
+            )));
+        }
+        for i in 0..3 {
+            if c.axes[i] {
+                free[3 * c.node + i] = false;
+                u[3 * c.node + i] = c.displacement[i];
+            }
+        }
+    }
+    Ok((free, u))
+}
+
+/// Solve for static equilibrium of `mesh` (rest positions, m) made of
+/// `material` with constitutive `law`, under `constraints` and `loads`.
+///
+/// Errors: bad input, a Newton step that does not converge, inverted
+/// elements under the neo-Hookean law, or a failed linear solve.
+///
+/// ```
+/// use surgbench_core::{mesh, SolidMaterial, Vec3};
+/// use surgbench_fem::{solve_static, Constraint, Law, Loads, StaticParams};
+/// let m = mesh::block(Vec3::new(0.01, 0.01, 0.01), [2, 2, 2]);
+/// let mat = SolidMaterial { youngs_modulus: 1e4, poisson_ratio: 0.3, density: 1000.0 };
+/// let mut c: Vec<Constraint> = mesh::nodes_on_plane(&m, 2, 0.0, 1e-12).into_iter().map(Constraint::fixed).collect();
+/// c.extend(mesh::nodes_on_plane(&m, 2, 0.01, 1e-12).into_iter().map(|n| Constraint::displaced(n, Vec3::new(0.0, 0.0, -1e-4))));
+/// let info = solve_static(&m, &mat, Law::Corotational, &c, &Loads::default(), &StaticParams::default()).unwrap();
+/// assert!(info.residual < 1e-9);
+/// ```
+pub fn solve_static(
+    mesh: &TetMesh,
+    material: &SolidMaterial,
+    law: Law,
+    constraints: &[Constraint],
+    loads: &Loads,
+    params: &StaticParams,
+) -> Result<StaticInfo, FemError> {
+    if params.load_steps == 0 || params.max_newton == 0 || !(params.tol > 0.0) {
+        return Err(FemError::BadInput(format!(
+            "StaticParams needs load_steps >= 1, max_newton >= 1, tol > 0: {params:?}"
+        )));
+    }
+    let mut solid = Solid::new(mesh, material, law, params.threads)?;
+    let n = solid.n_nodes();
+    let (free, uc) = dof_conditions(n, constraints)?;
+    let mut fext = vec![Vec3::zeros(); n];
+    if let Some(b) = loads.body_force {
+        fext = solid.body_loads(b);
+    }
+    for &(i, f) in &loads.nodal {
+        if i >= n || !f.iter().all(|v| v.is_finite()) {
+            return Err(FemError::BadInput(format!(
+                "nodal load {f:?} on node {i} (mesh has {n} nodes)"
+            )));
+        }
+        fext[i] += f;
+    }
+    let mut sys = System::new(&solid.pat, free.clone());
+    let rest = solid.rest.clone();
+    let mut x = rest.clone();
+    let mut iters = Vec::with_capacity(params.load_steps);
+    let mut last = Newton::default();
+    let mut fallbacks = 0;
+    for step in 1..=params.load_steps {
+        let s = step as f64 / params.load_steps as f64;
+        for d in 0..3 * n {
+            if !free[d] {
+                x[d / 3][d % 3] = rest[d / 3][d % 3] + s * uc[d];
+            }
+        }
+        let load: Vec<f64> = fext.iter().flat_map(|f| [f.x * s, f.y * s, f.z * s]).collect();
+        last = equilibrate(&mut solid, &mut sys, &mut x, &load, None, params, step)?;
+        fallbacks += last.fallbacks;
+        iters.push(last.iterations);
+    }
+    let mut reactions = vec![Vec3::zeros(); n];
+    for d in 0..3 * n {
+        if !free[d] {
+            reactions[d / 3][d % 3] = -last.r[d];
+        }
+    }
+    Ok(StaticInfo {
+        displacements: x.iter().zip(&rest).map(|(a, b)| a - b).collect(),
+        reactions,
+        newton_iterations: iters,
+        residual: last.residual,
+        energy: last.energy,
+        inverted: last.inverted,
+        linear_iterations: sys.cg_iterations,
+        jacobian_fallbacks: fallbacks,
+    })
+}
+
+/// Outcome of one [`equilibrate`] call.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Newton {
+    pub iterations: usize,
+    pub residual: f64,
+    pub energy: f64,
+    pub inverted: usize,
+    pub fallbacks: usize,
+    /// Final force residual `f_el + load` per DOF (N).
+    pub r: Vec<f64>,
+}
+
+/// Configuration-dependent (follower) load per DOF (N) at positions `x`.
+pub(crate) type Follower<'a> = &'a dyn Fn(&[Vec3]) -> Vec<f64>;
+
+/// Full Newton for `f_el(x) + load + follower(x) = 0` on the free DOFs of
+/// `sys`; the constrained DOFs of `x` are already at their targets. The
+/// follower load's derivative is left out of the Jacobian (it keeps the
+/// system symmetric; Newton then converges linearly, at a rate set by
+/// pressure over stiffness).
+pub(crate) fn equilibrate(
+    solid: &mut Solid,
+    sys: &mut System,
+    x: &mut Vec<Vec3>,
+    dead_load: &[f64],
+    follower: Option<Follower>,
+    params: &StaticParams,
+    step: usize,
+) -> Result<Newton, FemError> {
+    let n = solid.n_nodes();
+    let law = solid.mat.law;
+    let rest = solid.rest.clone();
+    let free = sys.free.clone();
+    let zero_mass = vec![0.0; n];
+    let fnorm = |v: &[f64]| {
+        v.iter()
+            .zip(&free)
+            .filter(|(_, f)| **f)
+            .map(|(a, _)| a * a)
+            .sum::<f64>()
+            .sqrt()
+    };
+    let mut out = Newton {
+        r: vec![0.0; 3 * n],
+        ..Default::default()
+    };
+    let mut jac = match law {
+        Law::Linear => Jacobian::Warped,
+        _ => Jacobian::Exact,
+    };
+    let total = |x: &[Vec3]| -> Vec<f64> {
+        match follower {
+            Some(f) => f(x).iter().zip(dead_load).map(|(a, b)| a + b).collect(),
+            None => dead_load.to_vec(),
+        }
+    };
+    let mut scale = fnorm(&total(x));
+    let mut it = 0;
+    let mut prev_rn = f64::INFINITY;
+    loop {
+        let load = total(x);
+        let load = &load[..];
+        let st = solid.evaluate(x, Some(jac), 0.0);
+        out.energy = st.energy;
+        out.inverted = st.inverted;
+        if law == Law::NeoHookean && st.inverted > 0 {
+            return Err(FemError::Inverted {
+                step,
+                elements: st.inverted,
+            });
+        }
+        let r = &mut out.r;
+        for i in 0..n {
+            for a in 0..3 {
+                r[3 * i + a] = solid.forces[i][a] + load[3 * i + a];
+            }
+        }
+        let rn = fnorm(r);
+        if it == 0 {
+            scale = scale.max(rn);
+        }
+        out.residual = if scale > 0.0 { rn / scale } else { 0.0 };
+        out.iterations = it;
+        if !rn.is_finite() || (it >= params.max_newton && rn > params.tol * scale) {
+            return Err(FemError::NotConverged {
+                step,
+                iterations: it,
+                residual: out.residual,
+            });
+        }
+        // Converged: under the tolerance, or stalled at the rounding floor.
+        // The floor grows with the coordinates' magnitude (a block far from
+        // the origin has fewer significant digits in x - X), so a stall
+        // (no halving of the residual) already below 1e-5 of the load scale
+        // counts as converged: it keeps the answer independent of where the
+        // scene sits (rigid-motion conformance).
+        let stalled = it >= 2 && rn >= 0.5 * prev_rn && rn <= 1e-5 * scale;
+        if rn <= params.tol * scale || rn == 0.0 || stalled {
+            return Ok(out);
+        }
+        prev_rn = rn;
+        it += 1;
+        sys.set_values(&solid.pat, &solid.kmat, 1.0, &zero_mass, 0.0);
+        let mut dx = r.clone();
+        match params.solver {
+            LinearSolver::Cholesky(ord) => {
+                if let Err(e) = sys.factorize(&solid.pat, ord) {
+                    if jac == Jacobian::Exact {
+                        jac = if law == Law::Corotational {
+                            Jacobian::Warped
+                        } else {
+                            Jacobian::Projected
+                        };
+                        out.fallbacks += 1;
+                        continue;
+                    }
+                    return Err(FemError::LinearSolver(e));
+                }
+                sys.solve_cholesky(&mut dx);
+            }
+            LinearSolver::Cg { tol, max_iter } => {
+                let mut sol = vec![0.0; 3 * n];
+                let pat = &solid.pat;
+                let kmat = &solid.kmat;
+                let rr = &*r;
+                solid.install(|| sys.solve_cg(pat, kmat, 1.0, &zero_mass, 0.0, rr, &mut sol, tol, max_iter));
+                dx = sol;
+            }
+        }
+        // Backtracking on Pi(x) = E(x) - load . (x - X); the slope along
+        // dx is -r . dx < 0 for a positive definite Jacobian.
+        let mut alpha = 1.0;
+        if law != Law::Linear {
+            let pi0 = out.energy - dot_disp(load, x, &rest);
+            let slope = -r.iter().zip(&dx).map(|(a, b)| a * b).sum::<f64>();
+            for _ in 0..20 {
+                let xt = add_scaled(x, &dx, alpha);
+                let e = solid.evaluate(&xt, None, 0.0).energy;
+                let pi = e - dot_disp(load, &xt, &rest);
+                if pi.is_finite() && pi <= pi0 + 1e-4 * alpha * slope + 1e-12 * pi0.abs() {
+                    break;
+                }
+                alpha *= 0.5;
+            }
+        }
+        *x = add_scaled(x, &dx, alpha);
+    }
+}
+
+fn add_scaled(x: &[Vec3], dx: &[f64], a: f64) -> Vec<Vec3> {
+    x.iter()
+        .enumerate()
+        .map(|(i, p)| p + Vec3::new(dx[3 * i], dx[3 * i + 1], dx[3 * i + 2]) * a)
+        .collect()
+}
+
+fn dot_disp(load: &[f64], x: &[Vec3], rest: &[Vec3]) -> f64 {
+    let mut s = 0.0;
+    for i in 0..x.len() {
+        let u = x[i] - rest[i];
+        s += load[3 * i] * u.x + load[3 * i + 1] * u.y + load[3 * i + 2] * u.z;
+    }
+    s
+}

@@ -1,0 +1,80 @@
+//! Shared test helpers: a seeded RNG and small meshes.
+#![allow(dead_code)]
+
+use surgbench_core::{SolidMaterial, Vec3};
+
+/// splitmix64: tiny deterministic RNG for test inputs.
+pub struct SplitMix(pub u64);
+
+impl SplitMix {
+    /// Uniform in [-1, 1).
+    pub fn next_f64(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        (z >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    }
+    /// Vector with components uniform in [-amp, amp).
+    pub fn vec3(&mut self, amp: f64) -> Vec3 {
+        Vec3::new(self.next_f64(), self.next_f64(), self.next_f64()) * amp
+    }
+}
+
+/// Soft-tissue-like material (SI).
+pub fn tissue(nu: f64) -> SolidMaterial {
+    SolidMaterial {
+        youngs_modulus: 5e3,
+        poisson_ratio: nu,
+        density: 1000.0,
+    }
+}
+
+/// Path of a committed reference file under `datasets/reference/`.
+pub fn reference(rel: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../datasets/reference")
+        .join(rel)
+}
+
+/// Read `key = number` from the `[parameters]` table of a meta.toml.
+pub fn meta_param(rel: &str, key: &str) -> f64 {
+    let path = reference(rel);
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut in_params = false;
+    for line in text.lines() {
+        let line = line.split('#').next().unwrap_or("").trim();
+        if line.starts_with('[') {
+            in_params = line == "[parameters]";
+        } else if let Some((k, v)) = line.split_once('=')
+            && in_params
+            && k.trim() == key
+        {
+            return v
+                .trim()
+                .parse()
+                .unwrap_or_else(|_| panic!("{}: `{key}` is not a number", path.display()));
+        }
+    }
+    panic!("{}: no `{key}` in [parameters]", path.display())
+}
+
+/// Numeric rows of a CSV with one header line.
+pub fn csv_rows(rel: &str) -> Vec<Vec<f64>> {
+    let path = reference(rel);
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    text.lines()
+        .skip(1)
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| {
+            l.split(',')
+                .map(|c| {
+                    c.trim()
+                        .parse()
+                        .unwrap_or_else(|_| panic!("{}: bad number `{c}`", path.display()))
+                })
+                .collect()
+        })
+        .collect()
+}

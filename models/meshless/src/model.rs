@@ -1,0 +1,852 @@
+//! The `meshless` model: factory, settings and the time stepper.
+//!
+//! **Integrators** (fidelity `integrator`):
+//! * `0` symplectic Euler, `v += h (f / m + g - c v)`, `x += h v`
+//!   (explicit, the seed's choice). Conditionally stable:
+//!   `h < 2 / omega_max`, `omega_max^2` the largest eigenvalue of `M^-1 K`;
+//!   [`MeshlessTissue::critical_dt`] estimates it by power iteration.
+//! * `1` backward Euler: each step minimises the incremental potential
+//!   `sum m/(2h^2) |x - x_n - h v_n|^2 + c m/(2h) |x - x_n|^2 + U(x) - m g . x`
+//!   by Newton's method with matrix-free conjugate gradients (exact
+//!   Hessian-vector products) and an Armijo line search; unconditionally
+//!   stable (numerically damped), `v = (x - x_n) / h`.
+//! * `2` quasi-static: the same Newton minimisation without the inertia
+//!   terms (`U(x) - m g . x` with the boundary conditions at this step's
+//!   command): every step is an equilibrium. Default when the scene settles.
+//!
+//! Newton stops when the largest free force component is under
+//! `1e-9 E l^2` (N; `l` the mean mesh edge length), i.e. a residual stress
+//! of `1e-9 E`.
+//!
+//! **Boundary conditions.** Fixed nodes stay at rest, driven nodes sit at
+//! `X + insertion d`, rollers (`partial_fixed`) hold the flagged world
+//! components at rest. Pressure loads are not implemented (Unsupported).
+//!
+//! **Reports.** `hand_force` is the force the body exerts on whatever drives
+//! the driven nodes: the sum over driven nodes of the internal elastic force
+//! `-dU/dx` plus their weight (N). `TissueObs::inverted` counts nodes whose
+//! deformation gradient has `det F <= 0`; `volume_error` uses the scene's
+//! tets as virtual tetrahedra. With PBD on, the corrections change the
+//! configuration; they are not forces and do not enter `hand_force`.
+//!
+//! Units are SI throughout.
+
+use surgbench_core::mesh::boundary_faces;
+use surgbench_core::{
+    BuildError, Capability, DeviceCommand, EnergyObs, EnergyProbe, Family, Fidelity, FidelityKey, Mat3, Model,
+    ModelFactory, Observation, Scene, SimError, StepStats, TissueBody, TissueObs, Unsupported, Vec3,
+};
+
+use crate::elastic::{PointElastic, StateCache};
+use crate::mls::MlsMap;
+use crate::pbd::PbdConstraints;
+
+/// Fidelity extras of `meshless` (besides `dt` and `iterations` = PBD sweeps).
+pub const MESHLESS_KEYS: &[FidelityKey] = &[
+    FidelityKey {
+        name: "support_factor",
+        doc: "poly6 support radius h over the mean mesh edge length (default 1.5)",
+    },
+    FidelityKey {
+        name: "mls_factor",
+        doc: "MLS surface-mapping radius over the mean mesh edge length (default 2.0)",
+    },
+    FidelityKey {
+        name: "stabilization",
+        doc: "hourglass-control stiffness over Young's modulus, gamma (default 0.1; 0 = off)",
+    },
+    FidelityKey {
+        name: "integrator",
+        doc: "0 symplectic Euler, 1 backward Euler (default dynamic), 2 quasi-static (default when the scene settles)",
+    },
+    FidelityKey {
+        name: "damping",
+        doc: "mass-proportional damping rate c (1/s); default 0, explicit on settling scenes 2 omega_1",
+    },
+    FidelityKey {
+        name: "pbd",
+        doc: "1 = add the seed's PBD corrections (edge stretch + virtual-tet energy), 0 = off (default)",
+    },
+    FidelityKey {
+        name: "pbd_stretch",
+        doc: "PBD stretch stiffness in [0, 1] (default 0.5)",
+    },
+    FidelityKey {
+        name: "pbd_tet",
+        doc: "PBD virtual-tet energy stiffness in [0, 1] (default 0.5)",
+    },
+];
+
+/// Time integrator.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Integrator {
+    /// Symplectic (semi-implicit) Euler, explicit.
+    SymplecticEuler,
+    /// Backward Euler by Newton-CG.
+    BackwardEuler,
+    /// Static equilibrium every step by Newton-CG.
+    QuasiStatic,
+}
+
+/// Resolved knobs of a [`MeshlessTissue`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MeshlessSettings {
+    /// Time step (s).
+    pub dt: f64,
+    /// PBD Gauss-Seidel sweeps per step.
+    pub iterations: usize,
+    /// Support radius over the mean edge length.
+    pub support_factor: f64,
+    /// MLS radius over the mean edge length.
+    pub mls_factor: f64,
+    /// Hourglass stiffness over `E`.
+    pub stabilization: f64,
+    /// Integrator.
+    pub integrator: Integrator,
+    /// Mass-proportional damping rate (1/s); `None` = the default.
+    pub damping: Option<f64>,
+    /// PBD corrections on.
+    pub pbd: bool,
+    /// PBD stretch stiffness.
+    pub pbd_stretch: f64,
+    /// PBD tet stiffness.
+    pub pbd_tet: f64,
+}
+
+impl MeshlessSettings {
+    /// Resolve `fidelity` over the defaults for `scene`, rejecting unknown
+    /// extras and out-of-range values.
+    pub fn resolve(scene: &Scene, fidelity: &Fidelity) -> Result<Self, BuildError> {
+        fidelity
+            .check_extras(MESHLESS_KEYS)
+            .map_err(|e| BuildError::bad("fidelity", e.0))?;
+        let f = MeshlessFactory.default_fidelity(scene).merged(fidelity);
+        let dt = f.dt.unwrap_or(1e-3);
+        let iterations = f.iterations.unwrap_or(5);
+        let positive = |name: &str, v: f64| {
+            if v > 0.0 && v.is_finite() {
+                Ok(v)
+            } else {
+                Err(BuildError::bad(name, format!("must be > 0, got {v}")))
+            }
+        };
+        let unit = |name: &str, v: f64| {
+            if (0.0..=1.0).contains(&v) {
+                Ok(v)
+            } else {
+                Err(BuildError::bad(name, format!("must be in [0, 1], got {v}")))
+            }
+        };
+        let flag = |name: &str, v: f64| match v {
+            0.0 => Ok(false),
+            1.0 => Ok(true),
+            _ => Err(BuildError::bad(name, format!("must be 0 or 1, got {v}"))),
+        };
+        let integrator = match f.extra("integrator", if scene.settle.is_some() { 2.0 } else { 1.0 }) {
+            0.0 => Integrator::SymplecticEuler,
+            1.0 => Integrator::BackwardEuler,
+            2.0 => Integrator::QuasiStatic,
+            v => return Err(BuildError::bad("integrator", format!("must be 0, 1 or 2, got {v}"))),
+        };
+        let damping = match f.extras.get("damping") {
+            None => None,
+            Some(&c) if c >= 0.0 && c.is_finite() => Some(c),
+            Some(&c) => return Err(BuildError::bad("damping", format!("must be >= 0 1/s, got {c}"))),
+        };
+        let stabilization = f.extra("stabilization", 0.1);
+        if !(stabilization >= 0.0 && stabilization.is_finite()) {
+            return Err(BuildError::bad(
+                "stabilization",
+                format!("must be >= 0, got {stabilization}"),
+            ));
+        }
+        Ok(Self {
+            dt: positive("dt", dt)?,
+            iterations,
+            support_factor: positive("support_factor", f.extra("support_factor", 1.5))?,
+            mls_factor: positive("mls_factor", f.extra("mls_factor", 2.0))?,
+            stabilization,
+            integrator,
+            damping,
+            pbd: flag("pbd", f.extra("pbd", 0.0))?,
+            pbd_stretch: unit("pbd_stretch", f.extra("pbd_stretch", 0.5))?,
+            pbd_tet: unit("pbd_tet", f.extra("pbd_tet", 0.5))?,
+        })
+    }
+}
+
+/// Factory of the point-primitive (meshless) tissue, id `meshless`.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct MeshlessFactory;
+
+const CAPS: &[Capability] = &[
+    Capability::Tissue,
+    Capability::RollerConstraint,
+    Capability::HapticForce,
+];
+
+impl ModelFactory for MeshlessFactory {
+    fn id(&self) -> &'static str {
+        "meshless"
+    }
+    fn description(&self) -> &'static str {
+        "Point-primitive tissue: MLS deformation gradients (Müller 2004), StVK, hourglass control, optional PBD corrections, MLS surface mapping"
+    }
+    fn family(&self) -> Family {
+        Family::Tissue
+    }
+    fn capabilities(&self) -> &'static [Capability] {
+        CAPS
+    }
+    fn fidelity_keys(&self) -> &'static [FidelityKey] {
+        MESHLESS_KEYS
+    }
+    fn default_fidelity(&self, _scene: &Scene) -> Fidelity {
+        Fidelity {
+            dt: Some(1e-3),
+            iterations: Some(5),
+            ..Default::default()
+        }
+    }
+    fn check(&self, scene: &Scene) -> Result<(), Unsupported> {
+        let missing: Vec<&str> = scene
+            .required_capabilities()
+            .into_iter()
+            .filter(|c| !CAPS.contains(c))
+            .map(|c| c.name())
+            .collect();
+        if !missing.is_empty() {
+            return Err(Unsupported::new(format!(
+                "meshless does not model: {}",
+                missing.join(", ")
+            )));
+        }
+        match scene.tissues().count() {
+            1 => Ok(()),
+            0 => Err(Unsupported::new("meshless needs a tissue body in the scene")),
+            k => Err(Unsupported::new(format!(
+                "meshless simulates one tissue, the scene has {k}"
+            ))),
+        }
+    }
+    fn build(&self, scene: &Scene, fidelity: &Fidelity) -> Result<Box<dyn Model>, BuildError> {
+        Ok(Box::new(MeshlessTissue::new(scene, fidelity)?))
+    }
+}
+
+/// Newton-CG result.
+#[derive(Debug, Clone, Copy)]
+struct SolveInfo {
+    iterations: u32,
+    residual: f64,
+    converged: bool,
+}
+
+/// The point-primitive tissue. Build through [`MeshlessFactory`] or
+/// [`MeshlessTissue::new`].
+#[derive(Debug, Clone)]
+pub struct MeshlessTissue {
+    set: MeshlessSettings,
+    el: PointElastic,
+    cache: StateCache,
+    x: Vec<Vec3>,
+    v: Vec<Vec3>,
+    mass: Vec<f64>,
+    /// 1 where a component moves, 0 where it is held.
+    axis_free: Vec<Vec3>,
+    /// Held components' positions at zero insertion (m).
+    driven: Vec<(usize, Vec3)>,
+    gravity: Vec3,
+    damping: f64,
+    tets: Vec<[usize; 4]>,
+    rest_volume: f64,
+    pbd: Option<PbdConstraints>,
+    pbd_residual: f64,
+    surface_nodes: Vec<usize>,
+    surface_faces: Vec<[usize; 3]>,
+    mls: MlsMap,
+    mean_edge: f64,
+    scale: f64,
+    tol: f64,
+    time: f64,
+    hand_force: Vec3,
+    forces: Vec<Vec3>,
+    /// Whether `forces` holds the internal forces at the current `x`.
+    forces_at_x: bool,
+}
+
+impl MeshlessTissue {
+    /// Build the tissue of `scene` (exactly one tissue body) at `fidelity`.
+    pub fn new(scene: &Scene, fidelity: &Fidelity) -> Result<Self, BuildError> {
+        MeshlessFactory.check(scene)?;
+        scene.validate().map_err(|e| BuildError::bad("scene", e))?;
+        let set = MeshlessSettings::resolve(scene, fidelity)?;
+        let body: &TissueBody = scene.tissues().next().expect("checked: one tissue");
+        let mesh = &body.mesh;
+        let nn = mesh.nodes.len();
+        if mesh.tets.is_empty() {
+            return Err(BuildError::bad("mesh", "tissue mesh has no tets"));
+        }
+        let m = body.material;
+        let mut volume = vec![0.0; nn];
+        let mut rest_volume = 0.0;
+        let (mut edge_sum, mut edge_n) = (0.0, 0usize);
+        for t in &mesh.tets {
+            let p = t.map(|i| mesh.nodes[i]);
+            let v = surgbench_core::mesh::tet_volume(&p[0], &p[1], &p[2], &p[3]).abs();
+            rest_volume += v;
+            for &i in t {
+                volume[i] += v / 4.0;
+            }
+            for a in 0..4 {
+                for b in a + 1..4 {
+                    edge_sum += (p[b] - p[a]).norm();
+                    edge_n += 1;
+                }
+            }
+        }
+        if let Some(i) = volume.iter().position(|&v| !(v > 0.0)) {
+            return Err(BuildError::bad(
+                "mesh",
+                format!("node {i} belongs to no tet, so it has no volume"),
+            ));
+        }
+        let mean_edge = edge_sum / edge_n as f64;
+        let el = PointElastic::new(
+            &mesh.nodes,
+            &volume,
+            set.support_factor * mean_edge,
+            m.youngs_modulus,
+            m.poisson_ratio,
+            set.stabilization * m.youngs_modulus,
+        )
+        .map_err(|e| BuildError::bad("support_factor", e.to_string()))?;
+        let surface_faces_global = boundary_faces(mesh);
+        let mut surface_nodes: Vec<usize> = surface_faces_global.iter().flatten().copied().collect();
+        surface_nodes.sort_unstable();
+        surface_nodes.dedup();
+        let mut local = vec![usize::MAX; nn];
+        for (k, &i) in surface_nodes.iter().enumerate() {
+            local[i] = k;
+        }
+        let surface_faces = surface_faces_global.iter().map(|f| f.map(|i| local[i])).collect();
+        let targets: Vec<Vec3> = surface_nodes.iter().map(|&i| mesh.nodes[i]).collect();
+        let mls = MlsMap::new(&mesh.nodes, &targets, set.mls_factor * mean_edge)
+            .map_err(|e| BuildError::bad("mls_factor", e.to_string()))?;
+        let mut axis_free = vec![Vec3::repeat(1.0); nn];
+        for &i in &body.fixed_nodes {
+            axis_free[i] = Vec3::zeros();
+        }
+        for (i, axes) in &body.partial_fixed {
+            for a in 0..3 {
+                if axes[a] {
+                    axis_free[*i][a] = 0.0;
+                }
+            }
+        }
+        if !body.driven_nodes.iter().all(|(_, d)| d.iter().all(|c| c.is_finite())) {
+            return Err(BuildError::bad("driven_nodes", "displacements must be finite"));
+        }
+        for &(i, _) in &body.driven_nodes {
+            axis_free[i] = Vec3::zeros();
+        }
+        let mass: Vec<f64> = volume.iter().map(|v| v * m.density).collect();
+        let (lo, hi) = surgbench_core::mesh::bounds(mesh);
+        let extent = (hi - lo).max();
+        let damping = match (set.damping, set.integrator, scene.settle) {
+            (Some(c), _, _) => c,
+            // Critical damping of the first axial mode of a bar of length L:
+            // omega_1 = (pi / 2L) sqrt(E / rho), c = 2 omega_1.
+            (None, Integrator::SymplecticEuler, Some(_)) => {
+                2.0 * std::f64::consts::PI / (2.0 * extent) * (m.youngs_modulus / m.density).sqrt()
+            }
+            _ => 0.0,
+        };
+        let pbd = set
+            .pbd
+            .then(|| PbdConstraints::new(&mesh.nodes, &mesh.tets, set.pbd_stretch, set.pbd_tet));
+        Ok(Self {
+            set,
+            cache: StateCache::default(),
+            x: mesh.nodes.clone(),
+            v: vec![Vec3::zeros(); nn],
+            mass,
+            axis_free,
+            driven: body.driven_nodes.clone(),
+            gravity: scene.gravity,
+            damping,
+            tets: mesh.tets.clone(),
+            rest_volume,
+            pbd,
+            pbd_residual: 0.0,
+            surface_nodes,
+            surface_faces,
+            mls,
+            mean_edge,
+            scale: (hi - lo).norm(),
+            tol: 1e-9 * m.youngs_modulus * mean_edge * mean_edge,
+            time: 0.0,
+            hand_force: Vec3::zeros(),
+            forces: vec![Vec3::zeros(); nn],
+            forces_at_x: false,
+            el,
+        })
+    }
+
+    /// Resolved settings.
+    pub fn settings(&self) -> MeshlessSettings {
+        self.set
+    }
+
+    /// The point discretisation (neighbourhoods, weights, material).
+    pub fn elastic(&self) -> &PointElastic {
+        &self.el
+    }
+
+    /// Node positions (m).
+    pub fn positions(&self) -> &[Vec3] {
+        &self.x
+    }
+
+    /// Node velocities (m/s).
+    pub fn velocities(&self) -> &[Vec3] {
+        &self.v
+    }
+
+    /// Node masses (kg): density times the node volume (a quarter of each
+    /// adjacent tet's volume).
+    pub fn masses(&self) -> &[f64] {
+        &self.mass
+    }
+
+    /// Mean mesh edge length (m), the unit of the support radii.
+    pub fn mean_edge(&self) -> f64 {
+        self.mean_edge
+    }
+
+    /// Mass-proportional damping rate in use (1/s).
+    pub fn damping(&self) -> f64 {
+        self.damping
+    }
+
+    /// Deformation gradient of node `i` at the current positions.
+    pub fn deformation_gradient(&self, i: usize) -> Mat3 {
+        self.el.deformation_gradient(i, &self.x)
+    }
+
+    /// Mesh node index of every surface particle (boundary vertices).
+    pub fn surface_nodes(&self) -> &[usize] {
+        &self.surface_nodes
+    }
+
+    /// Surface triangles, indices into [`Self::surface_positions`], normals out.
+    pub fn surface_faces(&self) -> &[[usize; 3]] {
+        &self.surface_faces
+    }
+
+    /// Surface particle positions mapped from the nodes by MLS (m).
+    pub fn surface_positions(&self) -> Vec<Vec3> {
+        self.mls.map(&self.x)
+    }
+
+    /// The MLS map from nodes to surface particles.
+    pub fn mls(&self) -> &MlsMap {
+        &self.mls
+    }
+
+    /// Largest distance between an MLS-mapped surface particle and the
+    /// simulated node it sits on (m): the error the mapping adds on its own.
+    pub fn surface_mapping_error(&self) -> f64 {
+        self.surface_nodes
+            .iter()
+            .enumerate()
+            .map(|(k, &i)| (self.mls.map_one(k, &self.x) - self.x[i]).norm())
+            .fold(0.0, f64::max)
+    }
+
+    /// Stability limit of the explicit integrator at rest, `2 / omega_max`
+    /// (s), with `omega_max^2` the largest eigenvalue of `M^-1 K` over the
+    /// free components, estimated by `iters` power iterations (from below,
+    /// so the returned step is an upper estimate of the limit).
+    pub fn critical_dt(&self, iters: usize) -> f64 {
+        let n = self.x.len();
+        let mut cache = StateCache::default();
+        self.el.prepare(&self.el.rest, &mut cache);
+        let mut s = 0x2545F4914F6CDD1Du64;
+        let mut q: Vec<Vec3> = (0..n)
+            .map(|i| {
+                let mut r = || {
+                    s ^= s << 13;
+                    s ^= s >> 7;
+                    s ^= s << 17;
+                    (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+                };
+                Vec3::new(r(), r(), r()).component_mul(&self.axis_free[i])
+            })
+            .collect();
+        let mut lam = 0.0;
+        let mut kq = vec![Vec3::zeros(); n];
+        for _ in 0..iters {
+            kq.iter_mut().for_each(|v| *v = Vec3::zeros());
+            self.el.add_hess_vec(&cache, &q, &mut kq);
+            let (mut num, mut den) = (0.0, 0.0);
+            for i in 0..n {
+                num += q[i].dot(&kq[i]);
+                den += self.mass[i] * q[i].norm_squared();
+            }
+            lam = num / den;
+            let mut norm = 0.0;
+            for i in 0..n {
+                q[i] = (kq[i] / self.mass[i]).component_mul(&self.axis_free[i]);
+                norm += self.mass[i] * q[i].norm_squared();
+            }
+            let norm = norm.sqrt();
+            if !(norm > 0.0) {
+                break;
+            }
+            q.iter_mut().for_each(|v| *v /= norm);
+        }
+        2.0 / lam.sqrt()
+    }
+
+    /// Set the held components to their targets at `insertion`.
+    fn apply_targets(&self, x: &mut [Vec3], insertion: f64) {
+        for i in 0..x.len() {
+            let h = Vec3::repeat(1.0) - self.axis_free[i];
+            x[i] = x[i].component_mul(&self.axis_free[i]) + self.el.rest[i].component_mul(&h);
+        }
+        for &(i, d) in &self.driven {
+            x[i] = self.el.rest[i] + d * insertion;
+        }
+    }
+
+    /// Internal forces at `x` into `self.forces` (cache prepared at `x`).
+    fn internal_forces(&mut self, x: &[Vec3]) {
+        self.el.prepare(x, &mut self.cache);
+        self.forces.iter_mut().for_each(|f| *f = Vec3::zeros());
+        self.el.add_forces(x, &self.cache, &mut self.forces);
+    }
+
+    /// Potential of the incremental problem at `x` (J).
+    fn objective(&self, x: &[Vec3], xn: &[Vec3], xt: &[Vec3], a_in: f64, a_damp: f64) -> f64 {
+        let (u, hg) = self.el.energy(x);
+        let mut e = u + hg;
+        for i in 0..x.len() {
+            let m = self.mass[i];
+            e -= m * self.gravity.dot(&x[i]);
+            if a_in > 0.0 {
+                e += 0.5 * m * a_in * (x[i] - xt[i]).norm_squared() + 0.5 * m * a_damp * (x[i] - xn[i]).norm_squared();
+            }
+        }
+        e
+    }
+
+    /// Gradient of [`Self::objective`], masked to the free components.
+    fn gradient(&mut self, x: &[Vec3], xn: &[Vec3], xt: &[Vec3], a_in: f64, a_damp: f64, g: &mut [Vec3]) {
+        self.internal_forces(x);
+        for i in 0..x.len() {
+            let m = self.mass[i];
+            let mut gi = -self.forces[i] - self.gravity * m;
+            if a_in > 0.0 {
+                gi += (x[i] - xt[i]) * (m * a_in) + (x[i] - xn[i]) * (m * a_damp);
+            }
+            g[i] = gi.component_mul(&self.axis_free[i]);
+        }
+    }
+
+    /// Minimise the incremental potential by Newton-CG. `a_in = 1/h^2` and
+    /// `a_damp = c/h` weight the inertia and damping terms (0 = quasi-static).
+    fn newton(&mut self, xn: &[Vec3], xt: &[Vec3], a_in: f64, a_damp: f64) -> SolveInfo {
+        let n = self.x.len();
+        let mut x = std::mem::take(&mut self.x);
+        let mut g = vec![Vec3::zeros(); n];
+        let mut dx = vec![Vec3::zeros(); n];
+        let mut xtry = vec![Vec3::zeros(); n];
+        let (mut r, mut p, mut hp) = (vec![Vec3::zeros(); n], vec![Vec3::zeros(); n], vec![Vec3::zeros(); n]);
+        let diag = a_in + a_damp;
+        let max_cg = (3 * n).clamp(50, 5000);
+        let mut info = SolveInfo {
+            iterations: 0,
+            residual: f64::INFINITY,
+            converged: false,
+        };
+        for it in 0..50 {
+            self.gradient(&x, xn, xt, a_in, a_damp, &mut g);
+            let res = g.iter().map(|v| v.amax()).fold(0.0, f64::max);
+            info.iterations = it;
+            info.residual = res;
+            if !res.is_finite() {
+                break;
+            }
+            if res <= self.tol {
+                info.converged = true;
+                break;
+            }
+            // CG on H dx = -g (masked), relative tolerance 1e-2.
+            dx.iter_mut().for_each(|v| *v = Vec3::zeros());
+            let mut rr = 0.0;
+            for i in 0..n {
+                r[i] = -g[i];
+                p[i] = r[i];
+                rr += r[i].norm_squared();
+            }
+            let stop = rr * 1e-4;
+            for k in 0..max_cg {
+                hp.iter_mut().for_each(|v| *v = Vec3::zeros());
+                self.el.add_hess_vec(&self.cache, &p, &mut hp);
+                let mut php = 0.0;
+                for i in 0..n {
+                    hp[i] = (hp[i] + p[i] * (self.mass[i] * diag)).component_mul(&self.axis_free[i]);
+                    php += p[i].dot(&hp[i]);
+                }
+                if !(php > 0.0) {
+                    // Negative curvature (Steihaug): keep the current iterate,
+                    // or steepest descent if there is none yet.
+                    if k == 0 {
+                        for i in 0..n {
+                            dx[i] = -g[i];
+                        }
+                    }
+                    break;
+                }
+                let alpha = rr / php;
+                let mut rr_new = 0.0;
+                for i in 0..n {
+                    dx[i] += p[i] * alpha;
+                    r[i] -= hp[i] * alpha;
+                    rr_new += r[i].norm_squared();
+                }
+                if rr_new <= stop {
+                    break;
+                }
+                let beta = rr_new / rr;
+                rr = rr_new;
+                for i in 0..n {
+                    p[i] = r[i] + p[i] * beta;
+                }
+            }
+            // Armijo backtracking on the potential.
+            let phi0 = self.objective(&x, xn, xt, a_in, a_damp);
+            let slope: f64 = (0..n).map(|i| g[i].dot(&dx[i])).sum();
+            let mut step = 1.0;
+            let mut accepted = false;
+            for _ in 0..30 {
+                for i in 0..n {
+                    xtry[i] = x[i] + dx[i] * step;
+                }
+                let phi = self.objective(&xtry, xn, xt, a_in, a_damp);
+                // The 1e-13 |phi0| slack absorbs rounding of the energy sum near convergence.
+                if phi <= phi0 + 1e-4 * step * slope + 1e-13 * phi0.abs() {
+                    accepted = true;
+                    break;
+                }
+                step *= 0.5;
+            }
+            if !accepted {
+                break;
+            }
+            std::mem::swap(&mut x, &mut xtry);
+        }
+        self.x = x;
+        info
+    }
+
+    /// Signed volume of the virtual tets over their rest volume, minus one.
+    fn volume_error(&self) -> f64 {
+        let v: f64 = self
+            .tets
+            .iter()
+            .map(|t| {
+                let p = t.map(|i| self.x[i]);
+                surgbench_core::mesh::tet_volume(&p[0], &p[1], &p[2], &p[3])
+            })
+            .sum();
+        v / self.rest_volume - 1.0
+    }
+
+    fn check_state(&self) -> Option<String> {
+        let lim = 10.0 * self.scale;
+        for (i, p) in self.x.iter().enumerate() {
+            if !p.iter().all(|c| c.is_finite()) {
+                return Some(format!("node {i} is not finite"));
+            }
+            let u = (p - self.el.rest[i]).norm();
+            if u > lim {
+                return Some(format!(
+                    "node {i} moved {u:.3e} m, 10x the body size {:.3e} m",
+                    self.scale
+                ));
+            }
+        }
+        None
+    }
+
+    fn energies(&self) -> EnergyObs {
+        let (u, hg) = self.el.energy(&self.x);
+        let mut e = EnergyObs {
+            elastic: u + hg,
+            ..Default::default()
+        };
+        for i in 0..self.x.len() {
+            e.kinetic += 0.5 * self.mass[i] * self.v[i].norm_squared();
+            e.external -= self.mass[i] * self.gravity.dot(&self.x[i]);
+        }
+        e
+    }
+}
+
+impl Model for MeshlessTissue {
+    fn step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
+        if !(dt > 0.0 && dt.is_finite()) {
+            return Err(SimError::SolverFailed {
+                t: self.time,
+                reason: format!("time step must be > 0 s, got {dt}"),
+            });
+        }
+        let n = self.x.len();
+        let xn = self.x.clone();
+        let mut stats = StepStats {
+            iterations: 0,
+            residual: 0.0,
+            converged: true,
+        };
+        match self.set.integrator {
+            Integrator::SymplecticEuler => {
+                if !self.forces_at_x {
+                    let x = std::mem::take(&mut self.x);
+                    self.internal_forces(&x);
+                    self.x = x;
+                }
+                for i in 0..n {
+                    let a = self.forces[i] / self.mass[i] + self.gravity - self.v[i] * self.damping;
+                    self.v[i] = (self.v[i] + a * dt).component_mul(&self.axis_free[i]);
+                    self.x[i] += self.v[i] * dt;
+                }
+                let mut x = std::mem::take(&mut self.x);
+                self.apply_targets(&mut x, cmd.insertion);
+                self.x = x;
+            }
+            Integrator::BackwardEuler | Integrator::QuasiStatic => {
+                let dynamic = self.set.integrator == Integrator::BackwardEuler;
+                let xt: Vec<Vec3> = if dynamic {
+                    (0..n).map(|i| xn[i] + self.v[i] * dt).collect()
+                } else {
+                    Vec::new()
+                };
+                let mut x = std::mem::take(&mut self.x);
+                self.apply_targets(&mut x, cmd.insertion);
+                self.x = x;
+                let (a_in, a_damp) = if dynamic {
+                    (1.0 / (dt * dt), self.damping / dt)
+                } else {
+                    (0.0, 0.0)
+                };
+                let info = self.newton(&xn, &xt, a_in, a_damp);
+                stats = StepStats {
+                    iterations: info.iterations,
+                    residual: info.residual,
+                    converged: info.converged,
+                };
+                if !info.residual.is_finite() {
+                    return Err(SimError::Diverged {
+                        t: self.time + dt,
+                        reason: "Newton residual is not finite".into(),
+                    });
+                }
+            }
+        }
+        if let Some(pbd) = &self.pbd {
+            let w: Vec<f64> = (0..n)
+                .map(|i| {
+                    if self.axis_free[i] == Vec3::zeros() {
+                        0.0
+                    } else {
+                        1.0 / self.mass[i]
+                    }
+                })
+                .collect();
+            self.pbd_residual = pbd.project(&mut self.x, &w, &self.axis_free, self.set.iterations);
+        }
+        for i in 0..n {
+            self.v[i] = (self.x[i] - xn[i]) / dt;
+        }
+        self.time += dt;
+        if let Some(reason) = self.check_state() {
+            return Err(SimError::Diverged { t: self.time, reason });
+        }
+        let x = std::mem::take(&mut self.x);
+        self.internal_forces(&x);
+        self.x = x;
+        self.forces_at_x = true;
+        self.hand_force = self
+            .driven
+            .iter()
+            .map(|&(i, _)| self.forces[i] + self.gravity * self.mass[i])
+            .sum();
+        Ok(stats)
+    }
+
+    fn observe(&self) -> Observation {
+        let inverted = (0..self.x.len())
+            .filter(|&i| !(self.el.deformation_gradient(i, &self.x).determinant() > 0.0))
+            .count();
+        Observation {
+            time: self.time,
+            tissues: vec![TissueObs {
+                rest: self.el.rest.clone(),
+                nodes: self.x.clone(),
+                velocities: self.v.clone(),
+                volume_error: self.volume_error(),
+                inverted,
+            }],
+            hand_force: self.hand_force,
+            energy: self.energies(),
+            constraint_residual: self.pbd.as_ref().map(|_| self.pbd_residual),
+            ..Default::default()
+        }
+    }
+
+    fn dt(&self) -> f64 {
+        self.set.dt
+    }
+
+    fn energy_probe(&mut self) -> Option<&mut dyn EnergyProbe> {
+        Some(self)
+    }
+}
+
+/// Coordinates are the node positions `(x0, y0, z0, x1, ...)` (m); the
+/// potential is strain + hourglass energy + gravity (J); forces are `-dE/dq` (N).
+impl EnergyProbe for MeshlessTissue {
+    fn coords(&self) -> Vec<f64> {
+        self.x.iter().flat_map(|p| p.iter().copied()).collect()
+    }
+    fn set_coords(&mut self, q: &[f64]) {
+        self.forces_at_x = false;
+        for (i, p) in self.x.iter_mut().enumerate() {
+            *p = Vec3::new(q[3 * i], q[3 * i + 1], q[3 * i + 2]);
+        }
+    }
+    fn potential(&self) -> f64 {
+        let (u, hg) = self.el.energy(&self.x);
+        u + hg
+            - (0..self.x.len())
+                .map(|i| self.mass[i] * self.gravity.dot(&self.x[i]))
+                .sum::<f64>()
+    }
+    fn forces(&self) -> Vec<f64> {
+        let mut cache = StateCache::default();
+        self.el.prepare(&self.x, &mut cache);
+        let mut f = vec![Vec3::zeros(); self.x.len()];
+        self.el.add_forces(&self.x, &cache, &mut f);
+        f.iter()
+            .zip(&self.mass)
+            .flat_map(|(fi, m)| (fi + self.gravity * *m).iter().copied().collect::<Vec<_>>())
+            .collect()
+    }
+    fn free(&self) -> Vec<usize> {
+        (0..3 * self.x.len())
+            .filter(|&k| self.axis_free[k / 3][k % 3] != 0.0)
+            .collect()
+    }
+}
