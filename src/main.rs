@@ -112,6 +112,35 @@ enum Cmd {
         #[arg(long, default_value = "benches/gate-baseline.json")]
         baseline: PathBuf,
     },
+    /// Drive a model from a haptic device at a fixed rate against the wall
+    /// clock (default 1 kHz) and report deadline misses, latency and jitter:
+    /// can this model drive a haptic device?
+    Haptic {
+        /// Model id.
+        #[arg(long)]
+        model: String,
+        /// Scenario id (its control timeline drives the device unless --replay is given).
+        #[arg(long)]
+        scenario: String,
+        /// Scenario parameter override, NAME=VALUE (repeatable).
+        #[arg(long = "param", value_name = "NAME=VALUE")]
+        params: Vec<String>,
+        /// Fidelity knob, KEY=VALUE (repeatable).
+        #[arg(long = "fidelity", value_name = "KEY=VALUE")]
+        fidelity: Vec<String>,
+        /// Loop rate (Hz).
+        #[arg(long, default_value_t = 1000.0)]
+        rate: f64,
+        /// Wall-clock duration of the loop (s).
+        #[arg(long, default_value_t = 10.0)]
+        duration: f64,
+        /// Replay a recorded session (CSV: t,insertion,rotation) instead of the scenario's timeline.
+        #[arg(long)]
+        replay: Option<PathBuf>,
+        /// Write what the device rendered (force, torque) to this CSV (with --replay).
+        #[arg(long)]
+        record: Option<PathBuf>,
+    },
     /// (internal) The workload the gate counts under valgrind.
     #[command(hide = true)]
     GateWorkload {
@@ -366,6 +395,51 @@ fn main() -> ExitCode {
                 say!("gate passed ({} workloads, margin {:.0}%)", verdicts.len(), cfg.margin * 100.0);
                 Ok(())
             }
+        })(),
+        Cmd::Haptic {
+            model,
+            scenario,
+            params,
+            fidelity,
+            rate,
+            duration,
+            replay,
+            record,
+        } => (|| {
+            if !(rate > 0.0 && rate.is_finite()) || !(duration > 0.0 && duration.is_finite()) {
+                return Err(Failure::Usage(format!("--rate and --duration must be > 0, got {rate} Hz, {duration} s")));
+            }
+            if record.is_some() && replay.is_none() {
+                return Err(Failure::Usage("--record needs --replay".into()));
+            }
+            let sc = registry::scenario(&scenario)?;
+            let factory = registry::model(&model)?;
+            let overrides = parse_overrides(&params)?;
+            let params = Params::resolve(sc.id(), sc.params(), &overrides)?;
+            let fid = Fidelity::parse_pairs(&fidelity).map_err(|e| Failure::Usage(e.0))?;
+            fid.check_extras(factory.fidelity_keys()).map_err(|e| Failure::Usage(format!("model `{model}`: {}", e.0)))?;
+            let run = sc.instantiate_at(&params, &fid)?;
+            factory.check(run.scene()).map_err(|u| Failure::Usage(format!("{model} cannot run {scenario}: {}", u.reason)))?;
+            let full = factory.default_fidelity(run.scene()).merged(&fid);
+            let m = factory.build(run.scene(), &full).map_err(|e| Failure::Usage(e.to_string()))?;
+            let report = match &replay {
+                Some(path) => {
+                    let session = surgbench_core::haptic::Session::load(path).map_err(|e| Failure::Usage(e.to_string()))?;
+                    let mut dev = surgbench_core::haptic::ReplayDevice::new(session);
+                    let r = surgbench_comparisons::haptic::run_haptic_loop(m, &mut dev, rate, duration)?;
+                    if let Some(out) = &record {
+                        dev.write_csv(out).map_err(|e| Failure::Runtime(format!("cannot write {}: {e}", out.display())))?;
+                    }
+                    r
+                }
+                None => {
+                    let mut dev = surgbench_core::haptic::ScriptedDevice::new(run.scene().control.clone());
+                    surgbench_comparisons::haptic::run_haptic_loop(m, &mut dev, rate, duration)?
+                }
+            };
+            say!("{model} on {scenario} [{full}] at {rate} Hz for {duration} s");
+            say!("{report}");
+            Ok(())
         })(),
         Cmd::GateWorkload {
             model,
