@@ -182,6 +182,14 @@ impl Comparison {
             }
             for id in &ids {
                 let f = registry::model(id)?;
+                // A tissue model has nothing to say about a rod scene and
+                // vice versa: cross-family pairs are left out, unless the
+                // comparison names the model for this scenario. Coupled
+                // models take part in both families.
+                let named = entry.models.contains_key(*id);
+                if !named && f.family() != sc.family() && f.family() != surgbench_core::Family::Coupled {
+                    continue;
+                }
                 let me = entry.models.get(*id).cloned().unwrap_or_default();
                 if let Err(u) = f.check(inst.scene()) {
                     jobs.push(Job {
