@@ -35,7 +35,8 @@ fn bench(c: &mut Criterion) {
                 |(mut m, scene)| {
                     let dt = m.dt();
                     for k in 0..w.steps {
-                        m.step(dt, &scene.control.command_at((k + 1) as f64 * dt)).expect("step");
+                        m.step(dt, &scene.control.command_at((k + 1) as f64 * dt))
+                            .expect("step");
                     }
                     m
                 },

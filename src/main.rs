@@ -211,7 +211,14 @@ fn list() {
         say!("  {:<22} [{}] {}", s.id(), s.family().name(), s.description());
         say!("  {:<22} reference: {}", "", s.reference());
         for p in s.params() {
-            say!("  {:<24}{:<16} = {:<10} {:<7} {}", "", p.name, short(p.default), p.unit, p.doc);
+            say!(
+                "  {:<24}{:<16} = {:<10} {:<7} {}",
+                "",
+                p.name,
+                short(p.default),
+                p.unit,
+                p.doc
+            );
         }
     }
     say!("\nMODELS");
@@ -233,7 +240,9 @@ fn list() {
             .collect();
         names.sort();
         for p in names {
-            let desc = Comparison::load(&p).map(|c| c.description).unwrap_or_else(|e| format!("(unreadable: {e})"));
+            let desc = Comparison::load(&p)
+                .map(|c| c.description)
+                .unwrap_or_else(|e| format!("(unreadable: {e})"));
             say!("  {:<22} {}", p.file_stem().unwrap_or_default().to_string_lossy(), desc);
         }
     }
@@ -253,7 +262,8 @@ fn run_one(
     let overrides = parse_overrides(params)?;
     let params = Params::resolve(sc.id(), sc.params(), &overrides)?;
     let fid = Fidelity::parse_pairs(fidelity).map_err(|e| Failure::Usage(e.0))?;
-    fid.check_extras(factory.fidelity_keys()).map_err(|e| Failure::Usage(format!("model `{model}`: {}", e.0)))?;
+    fid.check_extras(factory.fidelity_keys())
+        .map_err(|e| Failure::Usage(format!("model `{model}`: {}", e.0)))?;
     if repeats == 0 {
         return Err(Failure::Usage("--repeats must be >= 1".into()));
     }
@@ -263,9 +273,11 @@ fn run_one(
         ..Default::default()
     };
     let summary = runner::run_single(sc, &params, run.as_ref(), factory, &fid, &opts)?;
-    let tmp = batch::temp_sibling(out).map_err(|e| Failure::Runtime(format!("cannot create {}: {e}", out.display())))?;
+    let tmp =
+        batch::temp_sibling(out).map_err(|e| Failure::Runtime(format!("cannot create {}: {e}", out.display())))?;
     runner::write_run_files(&tmp, &summary).map_err(|e| Failure::Runtime(format!("cannot write run files: {e}")))?;
-    batch::replace_dir(&tmp, out).map_err(|e| Failure::Runtime(format!("cannot move run into {}: {e}", out.display())))?;
+    batch::replace_dir(&tmp, out)
+        .map_err(|e| Failure::Runtime(format!("cannot move run into {}: {e}", out.display())))?;
     if !quiet {
         say!(
             "{} / {} [{}]: {}{}",
@@ -273,10 +285,19 @@ fn run_one(
             summary.model,
             summary.fidelity_string,
             summary.status,
-            if summary.reason.is_empty() { String::new() } else { format!(" ({})", summary.reason) }
+            if summary.reason.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", summary.reason)
+            }
         );
         if let Some(ms) = summary.ms_per_step_median {
-            say!("  {} steps, {:.4} s simulated, {ms:.4} ms/step median, end: {}", summary.steps, summary.sim_time_s, summary.end);
+            say!(
+                "  {} steps, {:.4} s simulated, {ms:.4} ms/step median, end: {}",
+                summary.steps,
+                summary.sim_time_s,
+                summary.end
+            );
         }
         for (k, v) in &summary.errors {
             say!("  {k:<34} {v:.6e}");
@@ -317,7 +338,8 @@ fn main() -> ExitCode {
             let path = find_comparison(&comparison)?;
             let c = Comparison::load(&path)?;
             let out = out.unwrap_or_else(|| project_root().join("reports/out/latest"));
-            let exe = std::env::current_exe().map_err(|e| Failure::Runtime(format!("cannot find own executable: {e}")))?;
+            let exe =
+                std::env::current_exe().map_err(|e| Failure::Runtime(format!("cannot find own executable: {e}")))?;
             let opts = BatchOptions {
                 quick,
                 models,
@@ -363,24 +385,44 @@ fn main() -> ExitCode {
                 return Err(Failure::Usage(format!("{} has no results.csv", dir.display())));
             }
             let files = surgbench_reports::render_dir(&dir).map_err(|e| match e {
-                surgbench_reports::ReportError::Io { .. } | surgbench_reports::ReportError::Plot { .. } => Failure::Runtime(e.to_string()),
+                surgbench_reports::ReportError::Io { .. } | surgbench_reports::ReportError::Plot { .. } => {
+                    Failure::Runtime(e.to_string())
+                }
                 _ => Failure::Usage(e.to_string()),
             })?;
             say!("rendered {} files into {}", files.len(), dir.display());
             Ok(())
         })(),
-        Cmd::Gate { update, config, baseline } => (|| {
+        Cmd::Gate {
+            update,
+            config,
+            baseline,
+        } => (|| {
             let cfg = gate::load_config(&config)?;
-            let exe = std::env::current_exe().map_err(|e| Failure::Runtime(format!("cannot find own executable: {e}")))?;
+            let exe =
+                std::env::current_exe().map_err(|e| Failure::Runtime(format!("cannot find own executable: {e}")))?;
             let verdicts = gate::run_gate(&exe, &cfg, &baseline, update).map_err(Failure::Runtime)?;
-            say!("{:<60} {:>16} {:>16} {:>8}", "workload", "instr/step", "baseline", "change");
+            say!(
+                "{:<60} {:>16} {:>16} {:>8}",
+                "workload",
+                "instr/step",
+                "baseline",
+                "change"
+            );
             let mut failed = 0;
             for v in &verdicts {
                 let (b, ch) = match v.baseline {
                     Some(b) => (format!("{b:.0}"), format!("{:+.2}%", 100.0 * (v.measured / b - 1.0))),
                     None => ("none".into(), "new".into()),
                 };
-                say!("{:<60} {:>16.0} {:>16} {:>8} {}", v.key, v.measured, b, ch, if v.pass { "ok" } else { "FAIL" });
+                say!(
+                    "{:<60} {:>16.0} {:>16} {:>8} {}",
+                    v.key,
+                    v.measured,
+                    b,
+                    ch,
+                    if v.pass { "ok" } else { "FAIL" }
+                );
                 failed += usize::from(!v.pass);
             }
             if update {
@@ -392,7 +434,11 @@ fn main() -> ExitCode {
                     cfg.margin * 100.0
                 )))
             } else {
-                say!("gate passed ({} workloads, margin {:.0}%)", verdicts.len(), cfg.margin * 100.0);
+                say!(
+                    "gate passed ({} workloads, margin {:.0}%)",
+                    verdicts.len(),
+                    cfg.margin * 100.0
+                );
                 Ok(())
             }
         })(),
@@ -406,8 +452,10 @@ fn main() -> ExitCode {
             replay,
             record,
         } => (|| {
-            if !(rate > 0.0 && rate.is_finite()) || !(duration > 0.0 && duration.is_finite()) {
-                return Err(Failure::Usage(format!("--rate and --duration must be > 0, got {rate} Hz, {duration} s")));
+            if !(rate > 0.0 && rate.is_finite() && duration > 0.0 && duration.is_finite()) {
+                return Err(Failure::Usage(format!(
+                    "--rate and --duration must be > 0, got {rate} Hz, {duration} s"
+                )));
             }
             if record.is_some() && replay.is_none() {
                 return Err(Failure::Usage("--record needs --replay".into()));
@@ -417,18 +465,25 @@ fn main() -> ExitCode {
             let overrides = parse_overrides(&params)?;
             let params = Params::resolve(sc.id(), sc.params(), &overrides)?;
             let fid = Fidelity::parse_pairs(&fidelity).map_err(|e| Failure::Usage(e.0))?;
-            fid.check_extras(factory.fidelity_keys()).map_err(|e| Failure::Usage(format!("model `{model}`: {}", e.0)))?;
+            fid.check_extras(factory.fidelity_keys())
+                .map_err(|e| Failure::Usage(format!("model `{model}`: {}", e.0)))?;
             let run = sc.instantiate_at(&params, &fid)?;
-            factory.check(run.scene()).map_err(|u| Failure::Usage(format!("{model} cannot run {scenario}: {}", u.reason)))?;
+            factory
+                .check(run.scene())
+                .map_err(|u| Failure::Usage(format!("{model} cannot run {scenario}: {}", u.reason)))?;
             let full = factory.default_fidelity(run.scene()).merged(&fid);
-            let m = factory.build(run.scene(), &full).map_err(|e| Failure::Usage(e.to_string()))?;
+            let m = factory
+                .build(run.scene(), &full)
+                .map_err(|e| Failure::Usage(e.to_string()))?;
             let report = match &replay {
                 Some(path) => {
-                    let session = surgbench_core::haptic::Session::load(path).map_err(|e| Failure::Usage(e.to_string()))?;
+                    let session =
+                        surgbench_core::haptic::Session::load(path).map_err(|e| Failure::Usage(e.to_string()))?;
                     let mut dev = surgbench_core::haptic::ReplayDevice::new(session);
                     let r = surgbench_comparisons::haptic::run_haptic_loop(m, &mut dev, rate, duration)?;
                     if let Some(out) = &record {
-                        dev.write_csv(out).map_err(|e| Failure::Runtime(format!("cannot write {}: {e}", out.display())))?;
+                        dev.write_csv(out)
+                            .map_err(|e| Failure::Runtime(format!("cannot write {}: {e}", out.display())))?;
                     }
                     r
                 }
@@ -452,7 +507,11 @@ fn main() -> ExitCode {
                 model,
                 scenario,
                 params: parse_overrides(&params)?.into_iter().collect(),
-                fidelity: Fidelity::parse_pairs(&fidelity).map_err(|e| Failure::Usage(e.0))?.pairs().into_iter().collect(),
+                fidelity: Fidelity::parse_pairs(&fidelity)
+                    .map_err(|e| Failure::Usage(e.0))?
+                    .pairs()
+                    .into_iter()
+                    .collect(),
                 steps,
             };
             gate::run_workload(&w, steps)?;

@@ -19,7 +19,10 @@ fn run(scenario: &str, model: &str, overrides: &[(&str, f64)], fidelity: &[(&str
     let f = registry::model(model).unwrap();
     let s = run_single(sc, &p, inst.as_ref(), f, &fid, &RunOptions::default()).unwrap();
     assert_eq!(s.status, "ok", "{scenario}/{model} {fidelity:?}: {}", s.reason);
-    assert_eq!(s.end, "settled", "{scenario}/{model} {fidelity:?} did not reach equilibrium");
+    assert_eq!(
+        s.end, "settled",
+        "{scenario}/{model} {fidelity:?} did not reach equilibrium"
+    );
     s
 }
 
@@ -35,7 +38,10 @@ fn der_tip_load_elastica_within_half_a_percent_at_50_segments() {
 #[test]
 fn der_gravity_cantilever_converges_at_second_order() {
     let ns = [10.0, 20.0, 40.0];
-    let errs: Vec<f64> = ns.iter().map(|n| run("cantilever-gravity", "der", &[], &[("segments", *n)]).errors["tip_error_rel"]).collect();
+    let errs: Vec<f64> = ns
+        .iter()
+        .map(|n| run("cantilever-gravity", "der", &[], &[("segments", *n)]).errors["tip_error_rel"])
+        .collect();
     let p = surgbench_reports::fit_order(&ns, &errs).unwrap();
     // Central-difference curvature on a uniform grid: second order; 1.8..2.2
     // allows for the O(h^3) terms still visible at 10 segments.
@@ -70,14 +76,29 @@ fn run_one_honours_parameter_overrides() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("one");
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_surgbench"))
-        .args(["run-one", "--scenario", "cantilever-gravity", "--model", "der", "--quiet"])
-        .args(["--param", "length=0.3", "--param", "youngs_modulus=5e10", "--fidelity", "segments=40"])
+        .args([
+            "run-one",
+            "--scenario",
+            "cantilever-gravity",
+            "--model",
+            "der",
+            "--quiet",
+        ])
+        .args([
+            "--param",
+            "length=0.3",
+            "--param",
+            "youngs_modulus=5e10",
+            "--fidelity",
+            "segments=40",
+        ])
         .arg("--out")
         .arg(&out)
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(v["params"]["length"], 0.3);
     assert_eq!(v["scenario"], "cantilever-gravity");
     // The reference tip for those parameters, computed independently here.
@@ -89,9 +110,13 @@ fn run_one_honours_parameter_overrides() {
     assert!((ref_tip[0].as_f64().unwrap() - el.tip().0).abs() < 1e-12);
     assert!((ref_tip[2].as_f64().unwrap() - el.tip().1).abs() < 1e-12);
     let tip = v["tip"].as_array().unwrap();
-    let err = ((tip[0].as_f64().unwrap() - el.tip().0).powi(2) + (tip[2].as_f64().unwrap() - el.tip().1).powi(2)).sqrt();
+    let err =
+        ((tip[0].as_f64().unwrap() - el.tip().0).powi(2) + (tip[2].as_f64().unwrap() - el.tip().1).powi(2)).sqrt();
     let reported = v["errors"]["tip_error_m"].as_f64().unwrap();
-    assert!((err - reported).abs() < 1e-15, "summary error {reported} vs recomputed {err}");
+    assert!(
+        (err - reported).abs() < 1e-15,
+        "summary error {reported} vs recomputed {err}"
+    );
     for f in ["summary.json", "observables.csv", "final_state.csv"] {
         assert!(out.join(f).is_file(), "{f} missing");
     }

@@ -23,8 +23,15 @@ fn stderr(o: &Output) -> String {
 fn assert_usage_error(args: &[&str], needle: &str, out: &Path) {
     let o = surgbench(args);
     let err = stderr(&o);
-    assert_eq!(o.status.code(), Some(2), "args {args:?}: expected exit 2, stderr: {err}");
-    assert!(err.contains(needle), "args {args:?}: stderr should mention `{needle}`: {err}");
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "args {args:?}: expected exit 2, stderr: {err}"
+    );
+    assert!(
+        err.contains(needle),
+        "args {args:?}: stderr should mention `{needle}`: {err}"
+    );
     assert_eq!(err.trim().lines().count(), 1, "args {args:?}: one line expected: {err}");
     assert!(!out.exists(), "args {args:?}: {} must not be written", out.display());
 }
@@ -40,16 +47,102 @@ fn bad_input_is_a_clear_usage_error_and_writes_nothing() {
         a.extend_from_slice(extra);
         assert_usage_error(&a, needle, &out);
     };
-    case(&["--scenario", "nope", "--model", "faulty-panic"], "unknown scenario `nope`");
-    case(&["--scenario", "cantilever-gravity", "--model", "nope"], "unknown model `nope`");
-    case(&["--scenario", "cantilever-gravity", "--model", "faulty-panic", "--param", "lenght=1"], "no parameter `lenght`");
-    case(&["--scenario", "cantilever-gravity", "--model", "faulty-panic", "--param", "length=-0.1"], "`length`");
-    case(&["--scenario", "cantilever-gravity", "--model", "faulty-panic", "--param", "poisson_ratio=0.5"], "`poisson_ratio`");
-    case(&["--scenario", "cantilever-gravity", "--model", "faulty-panic", "--param", "length=abc"], "not a number");
-    case(&["--scenario", "cantilever-gravity", "--model", "faulty-panic", "--fidelity", "dt=0"], "`dt`");
-    case(&["--scenario", "cantilever-gravity", "--model", "faulty-panic", "--fidelity", "dt=-1e-3"], "`dt`");
-    case(&["--scenario", "cantilever-gravity", "--model", "faulty-panic", "--fidelity", "segments=2.5"], "`segments`");
-    case(&["--scenario", "cantilever-gravity", "--model", "faulty-panic", "--fidelity", "warp=1"], "unknown fidelity key `warp`");
+    case(
+        &["--scenario", "nope", "--model", "faulty-panic"],
+        "unknown scenario `nope`",
+    );
+    case(
+        &["--scenario", "cantilever-gravity", "--model", "nope"],
+        "unknown model `nope`",
+    );
+    case(
+        &[
+            "--scenario",
+            "cantilever-gravity",
+            "--model",
+            "faulty-panic",
+            "--param",
+            "lenght=1",
+        ],
+        "no parameter `lenght`",
+    );
+    case(
+        &[
+            "--scenario",
+            "cantilever-gravity",
+            "--model",
+            "faulty-panic",
+            "--param",
+            "length=-0.1",
+        ],
+        "`length`",
+    );
+    case(
+        &[
+            "--scenario",
+            "cantilever-gravity",
+            "--model",
+            "faulty-panic",
+            "--param",
+            "poisson_ratio=0.5",
+        ],
+        "`poisson_ratio`",
+    );
+    case(
+        &[
+            "--scenario",
+            "cantilever-gravity",
+            "--model",
+            "faulty-panic",
+            "--param",
+            "length=abc",
+        ],
+        "not a number",
+    );
+    case(
+        &[
+            "--scenario",
+            "cantilever-gravity",
+            "--model",
+            "faulty-panic",
+            "--fidelity",
+            "dt=0",
+        ],
+        "`dt`",
+    );
+    case(
+        &[
+            "--scenario",
+            "cantilever-gravity",
+            "--model",
+            "faulty-panic",
+            "--fidelity",
+            "dt=-1e-3",
+        ],
+        "`dt`",
+    );
+    case(
+        &[
+            "--scenario",
+            "cantilever-gravity",
+            "--model",
+            "faulty-panic",
+            "--fidelity",
+            "segments=2.5",
+        ],
+        "`segments`",
+    );
+    case(
+        &[
+            "--scenario",
+            "cantilever-gravity",
+            "--model",
+            "faulty-panic",
+            "--fidelity",
+            "warp=1",
+        ],
+        "unknown fidelity key `warp`",
+    );
     // A missing required argument is clap's usage error (exit 2 too).
     let o = surgbench(&["run-one", "--scenario", "cantilever-gravity"]);
     assert_eq!(o.status.code(), Some(2));
@@ -62,10 +155,22 @@ fn malformed_comparison_and_csv_are_usage_errors() {
     let o = out.to_str().unwrap();
     let bad = tmp.path().join("bad.toml");
     std::fs::write(&bad, "name = \"x\"\nmodels = [\"der\"\n").unwrap();
-    assert_usage_error(&["run", bad.to_str().unwrap(), "--out", o], "malformed comparison TOML", &out);
+    assert_usage_error(
+        &["run", bad.to_str().unwrap(), "--out", o],
+        "malformed comparison TOML",
+        &out,
+    );
     let unknown = tmp.path().join("unknown.toml");
-    std::fs::write(&unknown, "name = \"x\"\nmodels = [\"nope\"]\n[[scenario]]\nid = \"cantilever-gravity\"\n").unwrap();
-    assert_usage_error(&["run", unknown.to_str().unwrap(), "--out", o], "unknown model `nope`", &out);
+    std::fs::write(
+        &unknown,
+        "name = \"x\"\nmodels = [\"nope\"]\n[[scenario]]\nid = \"cantilever-gravity\"\n",
+    )
+    .unwrap();
+    assert_usage_error(
+        &["run", unknown.to_str().unwrap(), "--out", o],
+        "unknown model `nope`",
+        &out,
+    );
     assert_usage_error(&["run", "no-such-comparison", "--out", o], "unknown comparison", &out);
     // `report` on a folder whose results.csv is malformed.
     let rep = tmp.path().join("rep");
@@ -90,12 +195,28 @@ fn misbehaving_models_are_recorded_and_the_comparison_goes_on() {
     let o = surgbench(&["run", cmp.to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let csv = std::fs::read_to_string(out.join("results.csv")).unwrap();
-    let row = |m: &str| csv.lines().find(|l| l.contains(&format!(",{m},"))).unwrap_or_else(|| panic!("no row for {m}: {csv}")).to_string();
-    assert!(row("faulty-panic").contains(",failed,") && row("faulty-panic").contains("panicked on purpose"), "{}", row("faulty-panic"));
-    assert!(row("faulty-abort").contains(",failed,") && row("faulty-abort").contains("SIGABRT"), "{}", row("faulty-abort"));
+    let row = |m: &str| {
+        csv.lines()
+            .find(|l| l.contains(&format!(",{m},")))
+            .unwrap_or_else(|| panic!("no row for {m}: {csv}"))
+            .to_string()
+    };
+    assert!(
+        row("faulty-panic").contains(",failed,") && row("faulty-panic").contains("panicked on purpose"),
+        "{}",
+        row("faulty-panic")
+    );
+    assert!(
+        row("faulty-abort").contains(",failed,") && row("faulty-abort").contains("SIGABRT"),
+        "{}",
+        row("faulty-abort")
+    );
     assert!(row("faulty-hang").contains(",timeout,"), "{}", row("faulty-hang"));
     let nf = row("faulty-nonfinite");
-    assert!(nf.contains(",unstable,") && nf.contains("non-finite state at t=0.0030 s"), "{nf}");
+    assert!(
+        nf.contains(",unstable,") && nf.contains("non-finite state at t=0.0030 s"),
+        "{nf}"
+    );
 }
 
 #[test]
@@ -120,7 +241,11 @@ fn a_failed_run_leaves_the_earlier_report_intact() {
     .unwrap();
     let r = surgbench(&["run", bad.to_str().unwrap(), "--out", o, "--quiet"]);
     assert_eq!(r.status.code(), Some(2), "{}", stderr(&r));
-    assert_eq!(std::fs::read(out.join("results.csv")).unwrap(), before, "earlier report changed");
+    assert_eq!(
+        std::fs::read(out.join("results.csv")).unwrap(),
+        before,
+        "earlier report changed"
+    );
     let leftovers: Vec<_> = std::fs::read_dir(tmp.path())
         .unwrap()
         .filter_map(|e| e.ok())

@@ -8,7 +8,8 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use surgbench_comparisons::registry;
 use surgbench_comparisons::scenario::Params;
 use surgbench_core::{
-    Body, BuildError, Capability, Fidelity, ModelFactory, Observation, RodBody, Scene, SolidMaterial, TetMesh, TissueBody, Vec3,
+    Body, BuildError, Capability, Fidelity, ModelFactory, Observation, RodBody, Scene, SolidMaterial, TetMesh,
+    TissueBody, Vec3,
 };
 
 /// Steps every conformance run takes: enough to leave the rest state.
@@ -40,7 +41,9 @@ fn coarse(f: &dyn ModelFactory, scene: &Scene) -> Fidelity {
 /// returned so determinism can still be checked on it.
 fn run(f: &dyn ModelFactory, scene: &Scene, steps: usize) -> Result<Observation, String> {
     let fid = coarse(f, scene);
-    let mut m = f.build(scene, &fid).unwrap_or_else(|e| panic!("{} on {}: build failed: {e}", f.id(), scene.name));
+    let mut m = f
+        .build(scene, &fid)
+        .unwrap_or_else(|e| panic!("{} on {}: build failed: {e}", f.id(), scene.name));
     let dt = m.dt();
     for k in 0..steps {
         let cmd = scene.control.command_at((k + 1) as f64 * dt);
@@ -58,7 +61,9 @@ fn force_scale(scene: &Scene) -> f64 {
         .map(|r| {
             let s0 = &r.sections[0];
             let bending = s0.youngs_modulus * s0.second_moment() / (r.length * r.length);
-            r.sections.iter().map(|s| s.density * s.area()).fold(0.0, f64::max) * r.length * g + r.tip_force.norm() + bending
+            r.sections.iter().map(|s| s.density * s.area()).fold(0.0, f64::max) * r.length * g
+                + r.tip_force.norm()
+                + bending
         })
         .sum();
     let tissues: f64 = scene
@@ -80,7 +85,11 @@ fn force_scale(scene: &Scene) -> f64 {
 }
 
 fn positions(o: &Observation) -> Vec<Vec3> {
-    o.rods.iter().flat_map(|r| r.nodes.iter().copied()).chain(o.tissues.iter().flat_map(|t| t.nodes.iter().copied())).collect()
+    o.rods
+        .iter()
+        .flat_map(|r| r.nodes.iter().copied())
+        .chain(o.tissues.iter().flat_map(|t| t.nodes.iter().copied()))
+        .collect()
 }
 
 #[test]
@@ -97,7 +106,10 @@ fn every_model_crate_is_registered() {
             continue;
         }
         let krate = format!("surgbench_{name}");
-        assert!(registered.contains(&krate.as_str()), "models/{name} ({krate}) has no factory in registry::models(): {registered:?}");
+        assert!(
+            registered.contains(&krate.as_str()),
+            "models/{name} ({krate}) has no factory in registry::models(): {registered:?}"
+        );
     }
 }
 
@@ -122,7 +134,10 @@ fn same_inputs_give_bit_identical_results() {
             let b = run(r.factory, &scene, STEPS);
             assert!(a == b, "{} on {sid}: two identical runs differ", r.factory.id());
             if let Err(e) = a {
-                eprintln!("note: {} on {sid} diverges at coarse fidelity ({e}); determinism checked on the failure", r.factory.id());
+                eprintln!(
+                    "note: {} on {sid} diverges at coarse fidelity ({e}); determinism checked on the failure",
+                    r.factory.id()
+                );
             }
         }
     }
@@ -138,20 +153,34 @@ fn rigid_motion_of_the_scene_moves_the_answer_rigidly() {
     // axes to axes: scenes with them get this one (x->y, y->z, z->x).
     let permuting = Isometry3::from_parts(
         Translation3::new(-0.1, 0.4, 0.2),
-        UnitQuaternion::from_axis_angle(&nalgebra::Unit::new_normalize(Vector3::new(1.0, 1.0, 1.0)), 2.0 * std::f64::consts::PI / 3.0),
+        UnitQuaternion::from_axis_angle(
+            &nalgebra::Unit::new_normalize(Vector3::new(1.0, 1.0, 1.0)),
+            2.0 * std::f64::consts::PI / 3.0,
+        ),
     );
     assert!(surgbench_core::scene::axis_permutation(&permuting).is_some());
     for r in registry::models() {
         for (sid, scene) in supported(r.factory) {
             let rollers = scene.tissues().any(|t| !t.partial_fixed.is_empty());
             let iso = if rollers { permuting } else { iso };
-            let (a, b) = match (run(r.factory, &scene, STEPS), run(r.factory, &scene.transformed(&iso), STEPS)) {
+            let (a, b) = match (
+                run(r.factory, &scene, STEPS),
+                run(r.factory, &scene.transformed(&iso), STEPS),
+            ) {
                 (Ok(a), Ok(b)) => (a, b),
                 (Err(e), Err(_)) => {
-                    eprintln!("note: {} on {sid} diverges at coarse fidelity ({e}) in both frames", r.factory.id());
+                    eprintln!(
+                        "note: {} on {sid} diverges at coarse fidelity ({e}) in both frames",
+                        r.factory.id()
+                    );
                     continue;
                 }
-                (a, b) => panic!("{} on {sid}: one frame diverges and the other does not: {:?} vs {:?}", r.factory.id(), a.err(), b.err()),
+                (a, b) => panic!(
+                    "{} on {sid}: one frame diverges and the other does not: {:?} vs {:?}",
+                    r.factory.id(),
+                    a.err(),
+                    b.err()
+                ),
             };
             let (pa, pb) = (positions(&a), positions(&b));
             assert_eq!(pa.len(), pb.len());
@@ -222,7 +251,9 @@ fn forces_are_minus_the_energy_gradient() {
             let free = probe.free();
             let scale = forces.iter().map(|f| f.abs()).fold(0.0, f64::max).max(1e-300);
             // Up to 24 free coordinates picked with a seeded generator.
-            let picks: Vec<usize> = (0..24.min(free.len())).map(|_| free[(rng.next() * free.len() as f64) as usize]).collect();
+            let picks: Vec<usize> = (0..24.min(free.len()))
+                .map(|_| free[(rng.next() * free.len() as f64) as usize])
+                .collect();
             for &i in &picks {
                 let h = 1e-6 * q0[i].abs().max(1e-3);
                 let mut q = q0.clone();
@@ -260,7 +291,10 @@ fn unsupported_scene(f: &dyn ModelFactory) -> Option<(Capability, Scene)> {
     if !caps.contains(&Capability::Tissue) {
         let nodes = vec![Vec3::zeros(), Vec3::x(), Vec3::y(), Vec3::z()];
         s.bodies.push(Body::Tissue(TissueBody {
-            mesh: TetMesh { nodes, tets: vec![[0, 1, 2, 3]] },
+            mesh: TetMesh {
+                nodes,
+                tets: vec![[0, 1, 2, 3]],
+            },
             material: SolidMaterial {
                 youngs_modulus: 1e4,
                 poisson_ratio: 0.3,
@@ -283,12 +317,18 @@ fn unsupported_scene(f: &dyn ModelFactory) -> Option<(Capability, Scene)> {
 #[test]
 fn unsupported_scenes_are_refused_with_a_reason() {
     for r in registry::models() {
-        let Some((cap, scene)) = unsupported_scene(r.factory) else { continue };
+        let Some((cap, scene)) = unsupported_scene(r.factory) else {
+            continue;
+        };
         let e = r.factory.check(&scene).expect_err("check must refuse");
         assert!(!e.reason.is_empty(), "{}: empty reason", r.factory.id());
         match r.factory.build(&scene, &Fidelity::default()) {
             Err(BuildError::Unsupported(u)) => assert!(!u.reason.is_empty()),
-            Err(other) => panic!("{}: build of a {} scene gave {other} instead of Unsupported", r.factory.id(), cap.name()),
+            Err(other) => panic!(
+                "{}: build of a {} scene gave {other} instead of Unsupported",
+                r.factory.id(),
+                cap.name()
+            ),
             Ok(_) => panic!("{}: built a model for a scene needing {}", r.factory.id(), cap.name()),
         }
     }

@@ -35,7 +35,11 @@ fn pre_curved_rods_rest_on_the_same_arc() {
             // it: within L (k Delta)^2 / 24 of the arc (Delta = L/n).
             let tol = l * (k * l / n as f64).powi(2) / 24.0 + 1e-12;
             let err = ((tip.x - expect[0]).powi(2) + (tip.y - expect[1]).powi(2) + (tip.z - expect[2]).powi(2)).sqrt();
-            assert!(err <= tol, "{} with rest_curvature {kappa:?}: tip {tip:?}, arc {expect:?}, error {err:.3e} > {tol:.3e}", f.id());
+            assert!(
+                err <= tol,
+                "{} with rest_curvature {kappa:?}: tip {tip:?}, arc {expect:?}, error {err:.3e} > {tol:.3e}",
+                f.id()
+            );
             tested += 1;
         }
         assert!(tested >= 2, "expected DER and PBD to model rest curvature");

@@ -87,7 +87,12 @@ fn base_row(c: &Comparison, job: &Job) -> ResultRow {
         model: job.model.clone(),
         family: f.map(|f| f.family().name().to_string()).unwrap_or_default(),
         fidelity: job.fidelity.to_string(),
-        params: job.params.iter().map(|(k, v)| format!("{k}={v}")).collect::<Vec<_>>().join(";"),
+        params: job
+            .params
+            .iter()
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect::<Vec<_>>()
+            .join(";"),
         primary_error: sc.map(|s| s.primary_error().to_string()).unwrap_or_default(),
         ..Default::default()
     }
@@ -131,7 +136,10 @@ fn row_from_summary(mut row: ResultRow, v: &serde_json::Value) -> ResultRow {
     row.watchdog = text(v, "watchdog");
     row.watchdog_t = num(v, "watchdog_t");
     if let Some(e) = v.get("errors").and_then(|x| x.as_object()) {
-        row.metrics = e.iter().filter_map(|(k, x)| x.as_f64().map(|x| (k.clone(), x))).collect();
+        row.metrics = e
+            .iter()
+            .filter_map(|(k, x)| x.as_f64().map(|x| (k.clone(), x)))
+            .collect();
     }
     row
 }
@@ -139,11 +147,22 @@ fn row_from_summary(mut row: ResultRow, v: &serde_json::Value) -> ResultRow {
 /// Last meaningful lines of a child's stderr (the panic message).
 fn stderr_tail(path: &Path) -> String {
     let s = std::fs::read_to_string(path).unwrap_or_default();
-    let lines: Vec<&str> = s.lines().map(str::trim).filter(|l| !l.is_empty() && !l.starts_with("note:")).collect();
+    let lines: Vec<&str> = s
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with("note:"))
+        .collect();
     // A Rust panic prints "thread '...' panicked at FILE:LINE:COL:" then the message.
     let tail = match lines.iter().position(|l| l.contains("panicked at")) {
         Some(i) => lines[i..(i + 2).min(lines.len())].join(" "),
-        None => lines.iter().rev().take(2).rev().copied().collect::<Vec<_>>().join(" | "),
+        None => lines
+            .iter()
+            .rev()
+            .take(2)
+            .rev()
+            .copied()
+            .collect::<Vec<_>>()
+            .join(" | "),
     };
     if tail.is_empty() {
         "no message".into()
@@ -160,7 +179,10 @@ fn run_job(c: &Comparison, job: &Job, runs: &Path, opts: &BatchOptions, repeats:
         row.reason = reason.clone();
         return row;
     }
-    let rel = PathBuf::from("runs").join(&job.scenario).join(&job.model).join(slug(&job.fidelity.to_string()));
+    let rel = PathBuf::from("runs")
+        .join(&job.scenario)
+        .join(&job.model)
+        .join(slug(&job.fidelity.to_string()));
     let dir = runs.parent().expect("runs has a parent").join(&rel);
     if let Some(p) = dir.parent() {
         let _ = std::fs::create_dir_all(p);
@@ -270,19 +292,35 @@ pub fn utc_now() -> String {
     let d = doy - (153 * mp + 2) / 5 + 1;
     let m = if mp < 10 { mp + 3 } else { mp - 9 };
     let y = if m <= 2 { y + 1 } else { y };
-    format!("{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z", rem / 3600, (rem % 3600) / 60, rem % 60)
+    format!(
+        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z",
+        rem / 3600,
+        (rem % 3600) / 60,
+        rem % 60
+    )
 }
 
 fn command_output(cmd: &str, args: &[&str]) -> Option<String> {
     let o = Command::new(cmd).args(args).stderr(Stdio::null()).output().ok()?;
-    o.status.success().then(|| String::from_utf8_lossy(&o.stdout).trim().to_string())
+    o.status
+        .success()
+        .then(|| String::from_utf8_lossy(&o.stdout).trim().to_string())
 }
 
 /// Versions of the crates that matter, read from the workspace's Cargo.lock
 /// as it was when the harness was built.
 pub fn crate_versions() -> BTreeMap<String, String> {
     const LOCK: &str = include_str!("../../Cargo.lock");
-    const WANT: &[&str] = &["nalgebra", "faer", "rapier3d", "parry3d", "plotters", "csv", "criterion", "rayon"];
+    const WANT: &[&str] = &[
+        "nalgebra",
+        "faer",
+        "rapier3d",
+        "parry3d",
+        "plotters",
+        "csv",
+        "criterion",
+        "rayon",
+    ];
     let mut out = BTreeMap::new();
     let mut name = "";
     for line in LOCK.lines() {
@@ -302,7 +340,11 @@ pub fn crate_versions() -> BTreeMap<String, String> {
 pub fn run_info(comparison: &str, opts: &BatchOptions) -> RunInfo {
     let cpu = std::fs::read_to_string("/proc/cpuinfo")
         .ok()
-        .and_then(|s| s.lines().find(|l| l.starts_with("model name")).map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string()))
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
+        })
         .unwrap_or_else(|| std::env::consts::ARCH.to_string());
     RunInfo {
         comparison: comparison.into(),
@@ -342,7 +384,10 @@ pub fn replace_dir(tmp: &Path, out: &Path) -> std::io::Result<()> {
 
 /// A temporary sibling of `out` for building a replacement.
 pub fn temp_sibling(out: &Path) -> std::io::Result<PathBuf> {
-    let parent = out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let parent = out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     std::fs::create_dir_all(parent)?;
     let tmp = parent.join(format!(
         ".{}.tmp-{}",
@@ -363,7 +408,11 @@ pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultR
     if jobs.is_empty() {
         return Err(crate::UsageError("the comparison selects no runs (no models match?)".into()).into());
     }
-    let repeats = if opts.quick { 1 } else { opts.repeats.or(c.repeats).unwrap_or(1) };
+    let repeats = if opts.quick {
+        1
+    } else {
+        opts.repeats.or(c.repeats).unwrap_or(1)
+    };
     let timeout = opts.timeout_s.or(c.timeout_s).unwrap_or(300.0);
     let tmp = temp_sibling(&opts.out).map_err(io("cannot create the temporary report folder"))?;
     let result = (|| -> Result<Vec<ResultRow>, BatchError> {
@@ -388,7 +437,8 @@ pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultR
         bar.finish_and_clear();
         let mut info = run_info(&c.name, opts);
         info.wall_s = started.elapsed().as_secs_f64();
-        surgbench_reports::write_results_csv(&tmp.join("results.csv"), &rows).map_err(|e| BatchError::Io(e.to_string()))?;
+        surgbench_reports::write_results_csv(&tmp.join("results.csv"), &rows)
+            .map_err(|e| BatchError::Io(e.to_string()))?;
         let json = serde_json::to_string_pretty(&info).map_err(|e| BatchError::Io(e.to_string()))?;
         std::fs::write(tmp.join("summary.json"), json + "\n").map_err(io("cannot write summary.json"))?;
         surgbench_reports::render(&tmp, &rows, &info).map_err(|e| BatchError::Io(e.to_string()))?;

@@ -132,11 +132,14 @@ impl Comparison {
 
     /// Parse comparison TOML text.
     pub fn parse(text: &str) -> Result<Self, UsageError> {
-        let c: Comparison = toml::from_str(text).map_err(|e| UsageError(format!("malformed comparison TOML: {}", e.message())))?;
+        let c: Comparison =
+            toml::from_str(text).map_err(|e| UsageError(format!("malformed comparison TOML: {}", e.message())))?;
         if let ModelSelection::All(s) = &c.models
             && s != "all"
         {
-            return Err(UsageError(format!("`models` must be \"all\" or a list of ids, got \"{s}\"")));
+            return Err(UsageError(format!(
+                "`models` must be \"all\" or a list of ids, got \"{s}\""
+            )));
         }
         if c.scenario.is_empty() {
             return Err(UsageError("comparison has no [[scenario]]".into()));
@@ -267,7 +270,11 @@ mod tests {
 
     #[test]
     fn sweep_is_a_cartesian_product() {
-        let g: BTreeMap<String, Vec<f64>> = [("segments".to_string(), vec![10.0, 20.0]), ("dt".to_string(), vec![1e-3, 1e-4])].into();
+        let g: BTreeMap<String, Vec<f64>> = [
+            ("segments".to_string(), vec![10.0, 20.0]),
+            ("dt".to_string(), vec![1e-3, 1e-4]),
+        ]
+        .into();
         let f = expand(&g).unwrap();
         assert_eq!(f.len(), 4);
         assert!(expand(&[("dt".to_string(), vec![-1.0])].into()).is_err());

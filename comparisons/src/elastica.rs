@@ -163,7 +163,9 @@ pub fn solve(l: f64, ei: f64, q: f64, p: f64, n: usize) -> Result<Elastica, Shoo
     let (mut a, mut b) = (-m_max * (1.0 + 1e-9), 0.0);
     let (mut ga, mut gb) = (g(a), g(b));
     if ga * gb > 0.0 {
-        return Err(ShootingError(format!("no sign change of mu(L) on [{a}, {b}]: {ga}, {gb}")));
+        return Err(ShootingError(format!(
+            "no sign change of mu(L) on [{a}, {b}]: {ga}, {gb}"
+        )));
     }
     // Illinois-modified regula falsi: bracketing, superlinear.
     let tol = 1e-14 * m_max;

@@ -4,7 +4,8 @@
 //! is `1` (the CLI tests set it); never part of a normal comparison.
 
 use surgbench_core::{
-    BuildError, Capability, DeviceCommand, Family, Fidelity, Model, ModelFactory, Observation, RodObs, Scene, SimError, StepStats, Vec3,
+    BuildError, Capability, DeviceCommand, Family, Fidelity, Model, ModelFactory, Observation, RodObs, Scene, SimError,
+    StepStats, Vec3,
 };
 
 /// How the model misbehaves.

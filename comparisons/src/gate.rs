@@ -62,7 +62,8 @@ pub struct Baseline {
 /// Load the gate configuration.
 pub fn load_config(path: &Path) -> Result<GateConfig, UsageError> {
     let text = std::fs::read_to_string(path).map_err(|e| UsageError(format!("cannot read {}: {e}", path.display())))?;
-    let c: GateConfig = toml::from_str(&text).map_err(|e| UsageError(format!("{}: {}", path.display(), e.message())))?;
+    let c: GateConfig =
+        toml::from_str(&text).map_err(|e| UsageError(format!("{}: {}", path.display(), e.message())))?;
     if !(c.margin >= 0.0) {
         return Err(UsageError(format!("{}: margin must be >= 0", path.display())));
     }
@@ -70,7 +71,11 @@ pub fn load_config(path: &Path) -> Result<GateConfig, UsageError> {
         registry::model(&w.model)?;
         registry::scenario(&w.scenario)?;
         if w.steps == 0 {
-            return Err(UsageError(format!("{}: workload {} has steps = 0", path.display(), w.key())));
+            return Err(UsageError(format!(
+                "{}: workload {} has steps = 0",
+                path.display(),
+                w.key()
+            )));
         }
     }
     Ok(c)
@@ -80,7 +85,11 @@ pub fn load_config(path: &Path) -> Result<GateConfig, UsageError> {
 pub fn cpu_model() -> String {
     std::fs::read_to_string("/proc/cpuinfo")
         .ok()
-        .and_then(|s| s.lines().find(|l| l.starts_with("model name")).map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string()))
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
+        })
         .unwrap_or_else(|| "unknown".into())
 }
 
@@ -96,7 +105,9 @@ pub fn run_workload(w: &Workload, steps: usize) -> Result<(), UsageError> {
     }
     let run = sc.instantiate_at(&params, &fid)?;
     let fid = f.default_fidelity(run.scene()).merged(&fid);
-    let mut m = f.build(run.scene(), &fid).map_err(|e| UsageError(format!("{}: {e}", w.key())))?;
+    let mut m = f
+        .build(run.scene(), &fid)
+        .map_err(|e| UsageError(format!("{}: {e}", w.key())))?;
     let dt = m.dt();
     for k in 0..steps {
         let cmd = run.scene().control.command_at((k + 1) as f64 * dt);
@@ -126,7 +137,9 @@ fn count(exe: &Path, w: &Workload, n: usize) -> Result<f64, String> {
         cmd.arg("--fidelity").arg(format!("{k}={v}"));
     }
     cmd.env("RAYON_NUM_THREADS", "1");
-    let out = cmd.output().map_err(|e| format!("cannot run valgrind (is it installed?): {e}"))?;
+    let out = cmd
+        .output()
+        .map_err(|e| format!("cannot run valgrind (is it installed?): {e}"))?;
     if !out.status.success() {
         return Err(format!(
             "valgrind run of {} failed: {}",
@@ -191,7 +204,8 @@ pub fn run_gate(exe: &Path, cfg: &GateConfig, baseline_path: &Path, update: bool
     }
     if update {
         let json = serde_json::to_string_pretty(&new).map_err(|e| e.to_string())?;
-        std::fs::write(baseline_path, json + "\n").map_err(|e| format!("cannot write {}: {e}", baseline_path.display()))?;
+        std::fs::write(baseline_path, json + "\n")
+            .map_err(|e| format!("cannot write {}: {e}", baseline_path.display()))?;
     }
     Ok(verdicts)
 }

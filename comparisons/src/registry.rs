@@ -60,10 +60,13 @@ pub fn scenarios() -> Vec<&'static dyn Scenario> {
 /// Look a model up by id.
 pub fn model(id: &str) -> Result<&'static dyn ModelFactory, UsageError> {
     let all = models();
-    all.iter().find(|r| r.factory.id() == id).map(|r| r.factory).ok_or_else(|| {
-        let ids: Vec<_> = all.iter().map(|r| r.factory.id()).collect();
-        UsageError(format!("unknown model `{id}` (known: {})", ids.join(", ")))
-    })
+    all.iter()
+        .find(|r| r.factory.id() == id)
+        .map(|r| r.factory)
+        .ok_or_else(|| {
+            let ids: Vec<_> = all.iter().map(|r| r.factory.id()).collect();
+            UsageError(format!("unknown model `{id}` (known: {})", ids.join(", ")))
+        })
 }
 
 /// Look a scenario up by id.

@@ -192,7 +192,12 @@ fn run_repeat(
         t: 0.0,
         times_ms: Vec::with_capacity(max_steps),
         iters: Vec::with_capacity(max_steps),
-        end: if scene.settle.is_some() { "time-limit" } else { "duration" }.into(),
+        end: if scene.settle.is_some() {
+            "time-limit"
+        } else {
+            "duration"
+        }
+        .into(),
         trip: None,
         series: Vec::new(),
         last: first,
@@ -299,7 +304,10 @@ pub fn run_single(
                 return Ok(s);
             }
             Err(BuildError::BadParameter { name, reason }) => {
-                return Err(UsageError(format!("model `{}`: bad parameter `{name}`: {reason}", factory.id())));
+                return Err(UsageError(format!(
+                    "model `{}`: bad parameter `{name}`: {reason}",
+                    factory.id()
+                )));
             }
         };
         if r == 0 {
@@ -367,9 +375,16 @@ pub fn write_run_files(dir: &Path, s: &RunSummary) -> std::io::Result<()> {
     let json = serde_json::to_string_pretty(s).map_err(std::io::Error::other)?;
     std::fs::write(dir.join("summary.json"), json + "\n")?;
     let mut f = std::io::BufWriter::new(std::fs::File::create(dir.join("observables.csv"))?);
-    writeln!(f, "t,tip_x,tip_y,tip_z,hand_fx,hand_fy,hand_fz,hand_tx,hand_ty,hand_tz,energy,error")?;
+    writeln!(
+        f,
+        "t,tip_x,tip_y,tip_z,hand_fx,hand_fy,hand_fz,hand_tx,hand_ty,hand_tz,energy,error"
+    )?;
     for x in &s.series {
-        let err = if x.error.is_finite() { format!("{:e}", x.error) } else { String::new() };
+        let err = if x.error.is_finite() {
+            format!("{:e}", x.error)
+        } else {
+            String::new()
+        };
         writeln!(
             f,
             "{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{}",
@@ -394,13 +409,21 @@ pub fn write_run_files(dir: &Path, s: &RunSummary) -> std::io::Result<()> {
         let mut body = 0;
         for r in &obs.rods {
             for (i, (x0, x)) in r.rest.iter().zip(&r.nodes).enumerate() {
-                writeln!(f, "{body},{i},{:e},{:e},{:e},{:e},{:e},{:e}", x0.x, x0.y, x0.z, x.x, x.y, x.z)?;
+                writeln!(
+                    f,
+                    "{body},{i},{:e},{:e},{:e},{:e},{:e},{:e}",
+                    x0.x, x0.y, x0.z, x.x, x.y, x.z
+                )?;
             }
             body += 1;
         }
         for t in &obs.tissues {
             for (i, (x0, x)) in t.rest.iter().zip(&t.nodes).enumerate() {
-                writeln!(f, "{body},{i},{:e},{:e},{:e},{:e},{:e},{:e}", x0.x, x0.y, x0.z, x.x, x.y, x.z)?;
+                writeln!(
+                    f,
+                    "{body},{i},{:e},{:e},{:e},{:e},{:e},{:e}",
+                    x0.x, x0.y, x0.z, x.x, x.y, x.z
+                )?;
             }
             body += 1;
         }

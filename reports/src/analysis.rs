@@ -63,9 +63,7 @@ pub fn pareto_front(points: &[(f64, f64)]) -> Vec<usize> {
         .collect();
     idx.sort_by(|&a, &b| {
         let (pa, pb) = (points[a], points[b]);
-        pa.0.total_cmp(&pb.0)
-            .then(pa.1.total_cmp(&pb.1))
-            .then(a.cmp(&b))
+        pa.0.total_cmp(&pb.0).then(pa.1.total_cmp(&pb.1)).then(a.cmp(&b))
     });
     let mut front = Vec::new();
     let mut best = f64::INFINITY;
@@ -170,10 +168,7 @@ pub(crate) fn coarse_to_fine(a: &ResultRow, b: &ResultRow) -> Ordering {
     };
     res(a)
         .total_cmp(&res(b))
-        .then(
-            b.dt.unwrap_or(f64::INFINITY)
-                .total_cmp(&a.dt.unwrap_or(f64::INFINITY)),
-        )
+        .then(b.dt.unwrap_or(f64::INFINITY).total_cmp(&a.dt.unwrap_or(f64::INFINITY)))
         .then(
             a.iterations
                 .unwrap_or(f64::NEG_INFINITY)

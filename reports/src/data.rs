@@ -214,9 +214,7 @@ fn parse_bool(s: &str) -> Result<Option<bool>, String> {
         "" => Ok(None),
         "true" => Ok(Some(true)),
         "false" => Ok(Some(false)),
-        _ => Err(format!(
-            "expected `true`, `false` or an empty cell, found {s:?}"
-        )),
+        _ => Err(format!("expected `true`, `false` or an empty cell, found {s:?}")),
     }
 }
 
@@ -235,10 +233,7 @@ fn csv_err(path: &Path, e: csv::Error) -> ReportError {
 /// A metric named like a fixed column, or with an empty name, is refused
 /// ([`ReportError::Invalid`]) because it could not be read back unambiguously.
 pub fn write_results_csv(path: &Path, rows: &[ResultRow]) -> Result<(), ReportError> {
-    let metric_names: BTreeSet<&str> = rows
-        .iter()
-        .flat_map(|r| r.metrics.keys().map(String::as_str))
-        .collect();
+    let metric_names: BTreeSet<&str> = rows.iter().flat_map(|r| r.metrics.keys().map(String::as_str)).collect();
     for m in &metric_names {
         if m.trim().is_empty() || FIXED_COLUMNS.contains(m) {
             return Err(ReportError::Invalid {
@@ -265,13 +260,7 @@ pub fn write_results_csv(path: &Path, rows: &[ResultRow]) -> Result<(), ReportEr
             });
         }
         for m in &metric_names {
-            rec.push(
-                row.metrics
-                    .get(*m)
-                    .copied()
-                    .map(format_f64)
-                    .unwrap_or_default(),
-            );
+            rec.push(row.metrics.get(*m).copied().map(format_f64).unwrap_or_default());
         }
         w.write_record(&rec).map_err(|e| csv_err(path, e))?;
     }
@@ -330,11 +319,7 @@ pub fn read_results_csv(path: &Path) -> Result<Vec<ResultRow>, ReportError> {
                 path,
                 line,
                 col,
-                format!(
-                    "ragged row: {} fields, the header has {}",
-                    rec.len(),
-                    header.len()
-                ),
+                format!("ragged row: {} fields, the header has {}", rec.len(), header.len()),
             ));
         }
         let mut row = ResultRow::default();
@@ -351,9 +336,7 @@ pub fn read_results_csv(path: &Path) -> Result<Vec<ResultRow>, ReportError> {
             res.map_err(|m| ReportError::parse(path, line, FIXED_COLUMNS[i], m))?;
         }
         for &(j, name) in &metric_cols {
-            if let Some(v) =
-                parse_f64(&rec[j]).map_err(|m| ReportError::parse(path, line, name, m))?
-            {
+            if let Some(v) = parse_f64(&rec[j]).map_err(|m| ReportError::parse(path, line, name, m))? {
                 row.metrics.insert(name.to_string(), v);
             }
         }
@@ -384,8 +367,7 @@ pub fn read_run_info(path: &Path) -> Result<RunInfo, ReportError> {
 
 /// The columns of a per-run `observables.csv`, in file order.
 pub const SERIES_COLUMNS: [&str; 12] = [
-    "t", "tip_x", "tip_y", "tip_z", "hand_fx", "hand_fy", "hand_fz", "hand_tx", "hand_ty",
-    "hand_tz", "energy", "error",
+    "t", "tip_x", "tip_y", "tip_z", "hand_fx", "hand_fy", "hand_fz", "hand_tx", "hand_ty", "hand_tz", "energy", "error",
 ];
 
 /// One run's time series (`<run_dir>/observables.csv`), SI units.
@@ -471,17 +453,12 @@ pub fn read_series(path: &Path) -> Result<Series, ReportError> {
                 path,
                 line,
                 "(row)",
-                format!(
-                    "ragged row: {} fields, the header has {}",
-                    rec.len(),
-                    header.len()
-                ),
+                format!("ragged row: {} fields, the header has {}", rec.len(), header.len()),
             ));
         }
         for (i, p) in pos.iter().enumerate() {
             let v = match p {
-                Some(j) => parse_f64(&rec[*j])
-                    .map_err(|m| ReportError::parse(path, line, SERIES_COLUMNS[i], m))?,
+                Some(j) => parse_f64(&rec[*j]).map_err(|m| ReportError::parse(path, line, SERIES_COLUMNS[i], m))?,
                 None => None,
             };
             if i == 0 && v.is_none() {

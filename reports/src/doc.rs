@@ -93,12 +93,7 @@ pub(crate) fn to_markdown(blocks: &[Block]) -> String {
                 out.push('\n');
             }
             Block::Image { svg, png, alt } => {
-                out.push_str(&format!(
-                    "![{}]({}) ([PNG]({}))\n\n",
-                    md_escape(alt),
-                    svg,
-                    png
-                ));
+                out.push_str(&format!("![{}]({}) ([PNG]({}))\n\n", md_escape(alt), svg, png));
             }
         }
     }
@@ -148,11 +143,7 @@ pub(crate) fn to_html(title: &str, blocks: &[Block]) -> String {
                     out.push_str("<tr>");
                     for c in r {
                         let t = html_escape(&c.text);
-                        let t = if c.bold {
-                            format!("<strong>{t}</strong>")
-                        } else {
-                            t
-                        };
+                        let t = if c.bold { format!("<strong>{t}</strong>") } else { t };
                         if c.warn {
                             out.push_str(&format!("<td class=\"warn\">{t}</td>"));
                         } else {

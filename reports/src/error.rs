@@ -85,14 +85,7 @@ impl fmt::Display for ReportError {
                 line,
                 column,
                 message,
-            } => write!(
-                f,
-                "{}: line {}, column `{}`: {}",
-                path.display(),
-                line,
-                column,
-                message
-            ),
+            } => write!(f, "{}: line {}, column `{}`: {}", path.display(), line, column, message),
             ReportError::Json { path, message } => write!(f, "{}: {}", path.display(), message),
             ReportError::Invalid { path, message } => write!(f, "{}: {}", path.display(), message),
             ReportError::Plot { path, message } => {

@@ -247,26 +247,16 @@ fn draw_title<DB: DrawingBackend>(
 /// Data range of the transformed values on one axis, padded so markers are not
 /// cut at the frame. Log axes pad by a factor, linear by a fraction.
 fn range(axis: &Axis, vals: &[f64]) -> (f64, f64) {
-    let t: Vec<f64> = vals
-        .iter()
-        .filter(|v| axis.usable(**v))
-        .map(|v| axis.tr(*v))
-        .collect();
+    let t: Vec<f64> = vals.iter().filter(|v| axis.usable(**v)).map(|v| axis.tr(*v)).collect();
     let (mut lo, mut hi) = t
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-            (a.min(*v), b.max(*v))
-        });
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(*v), b.max(*v)));
     if !lo.is_finite() {
         return (0.0, 1.0);
     }
     if hi - lo < 1e-12 {
         // A single value: one third of a decade either side (log), or +-10 % (linear).
-        let half = if axis.log {
-            0.5
-        } else {
-            (lo.abs() * 0.1).max(1e-12)
-        };
+        let half = if axis.log { 0.5 } else { (lo.abs() * 0.1).max(1e-12) };
         lo -= half;
         hi += half;
     } else {
@@ -384,8 +374,7 @@ fn draw_panel<DB: DrawingBackend>(p: &Panel, area: &DrawingArea<DB, Shift>) -> R
             let (bx, by) = area.get_base_pixel();
             for c in pts {
                 let (px, py) = chart.backend_coord(&c);
-                area.draw(&marker(m, (px - bx, py - by), s.look.color))
-                    .map_err(e)?;
+                area.draw(&marker(m, (px - bx, py - by), s.look.color)).map_err(e)?;
             }
         }
     }
@@ -425,19 +414,11 @@ impl Ranged for Scale {
 
 fn label(axis: &Axis, v: f64) -> String {
     let raw = if axis.log { 10f64.powf(v) } else { v };
-    if axis.plain {
-        fmt_plain(raw)
-    } else {
-        fmt_tick(raw)
-    }
+    if axis.plain { fmt_plain(raw) } else { fmt_tick(raw) }
 }
 
 /// A marker of shape `m` centred on `c` (any coordinate type), radius [`MARKER_R`] px.
-fn marker<'a, DB: DrawingBackend + 'a, C: Clone + 'a>(
-    m: Marker,
-    c: C,
-    color: RGBColor,
-) -> DynElement<'a, DB, C> {
+fn marker<'a, DB: DrawingBackend + 'a, C: Clone + 'a>(m: Marker, c: C, color: RGBColor) -> DynElement<'a, DB, C> {
     let r = MARKER_R;
     let fill = ShapeStyle::from(&color).filled();
     let outline = ShapeStyle::from(&WHITE).stroke_width(1);
@@ -446,14 +427,12 @@ fn marker<'a, DB: DrawingBackend + 'a, C: Clone + 'a>(
     let poly = |pts: Vec<(i32, i32)>| {
         let mut closed = pts.clone();
         closed.push(pts[0]);
-        (EmptyElement::at(c.clone()) + Polygon::new(pts, fill) + PathElement::new(closed, outline))
-            .into_dyn()
+        (EmptyElement::at(c.clone()) + Polygon::new(pts, fill) + PathElement::new(closed, outline)).into_dyn()
     };
     match m {
-        Marker::Circle => (EmptyElement::at(c.clone())
-            + Circle::new((0, 0), r, fill)
-            + Circle::new((0, 0), r, outline))
-        .into_dyn(),
+        Marker::Circle => {
+            (EmptyElement::at(c.clone()) + Circle::new((0, 0), r, fill) + Circle::new((0, 0), r, outline)).into_dyn()
+        }
         Marker::Square => {
             let s = r - 1;
             poly(vec![(-s, -s), (s, -s), (s, s), (-s, s)])
@@ -506,10 +485,7 @@ pub(crate) fn wrap(text: &str, width: usize) -> Vec<String> {
     lines
 }
 
-fn draw_legend<DB: DrawingBackend>(
-    area: &DrawingArea<DB, Shift>,
-    entries: &[LegendEntry],
-) -> Result<(), String> {
+fn draw_legend<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, entries: &[LegendEntry]) -> Result<(), String> {
     let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
     let style = font(LEGEND_PX).pos(Pos::new(HPos::Left, VPos::Center));
     let line_h = (LEGEND_PX * 1.3) as i32;
@@ -522,10 +498,7 @@ fn draw_legend<DB: DrawingBackend>(
         // Solid: one 44 px stroke; dashed: two 8 px dashes each side of the marker.
         match ent.look.line {
             Line::Solid => area
-                .draw(&PathElement::new(
-                    vec![(x_sym - 22, y), (x_sym + 22, y)],
-                    ls,
-                ))
+                .draw(&PathElement::new(vec![(x_sym - 22, y), (x_sym + 22, y)], ls))
                 .map_err(e)?,
             Line::Dashed => {
                 for (a, b) in [(-22, -16), (-12, -6), (6, 12), (16, 22)] {
@@ -540,12 +513,8 @@ fn draw_legend<DB: DrawingBackend>(
                 .map_err(e)?;
         }
         for (k, l) in lines.iter().enumerate() {
-            area.draw(&Text::new(
-                l.clone(),
-                (x_text, y + k as i32 * line_h),
-                style.clone(),
-            ))
-            .map_err(e)?;
+            area.draw(&Text::new(l.clone(), (x_text, y + k as i32 * line_h), style.clone()))
+                .map_err(e)?;
         }
         y += line_h * lines.len().max(1) as i32 + 12;
     }
@@ -558,10 +527,7 @@ mod tests {
 
     #[test]
     fn wrap_breaks_at_spaces_semicolons_and_long_words() {
-        assert_eq!(
-            wrap("der (7 runs, 4 on front)", 12),
-            ["der (7 runs,", "4 on front)"]
-        );
+        assert_eq!(wrap("der (7 runs, 4 on front)", 12), ["der (7 runs,", "4 on front)"]);
         assert_eq!(
             wrap("der segments=80;dt=0.0005;iterations=10", 26),
             ["der segments=80;dt=0.0005;", "iterations=10"]

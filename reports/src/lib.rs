@@ -34,8 +34,8 @@ mod render;
 
 pub use analysis::{fit_order, pareto_front};
 pub use data::{
-    FIXED_COLUMNS, ResultRow, RunInfo, SERIES_COLUMNS, Series, format_f64, read_results_csv,
-    read_run_info, read_series, write_results_csv, write_run_info,
+    FIXED_COLUMNS, ResultRow, RunInfo, SERIES_COLUMNS, Series, format_f64, read_results_csv, read_run_info,
+    read_series, write_results_csv, write_run_info,
 };
 pub use error::ReportError;
 pub use format::{fmt_sig, fmt_tick, log_ticks};

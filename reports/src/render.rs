@@ -7,8 +7,7 @@ use std::path::{Path, PathBuf};
 use crate::analysis::{Knob, choose_knob, coarse_to_fine, distinct, fidelity_without, finest};
 use crate::doc::{Block, Cell, to_html, to_markdown};
 use crate::figure::{
-    Axis, BAD_RED, FAIL_GREY, Figure, LegendEntry, Line, Look, Marker, OK_GREEN, PALETTE, Panel,
-    SeriesSpec, save,
+    Axis, BAD_RED, FAIL_GREY, Figure, LegendEntry, Line, Look, Marker, OK_GREEN, PALETTE, Panel, SeriesSpec, save,
 };
 use crate::format::{fmt_plain, fmt_sig, slug};
 use crate::{ReportError, ResultRow, RunInfo, fit_order, pareto_front, read_series};
@@ -146,11 +145,7 @@ struct Group<'a> {
 
 impl Group<'_> {
     fn model_rows(&self, model: &str) -> Vec<&ResultRow> {
-        self.rows
-            .iter()
-            .copied()
-            .filter(|r| r.model == model)
-            .collect()
+        self.rows.iter().copied().filter(|r| r.model == model).collect()
     }
     fn err(&self, r: &ResultRow) -> Option<f64> {
         r.metrics.get(&self.metric).copied()
@@ -219,11 +214,7 @@ fn group_rows(rows: &[ResultRow]) -> Vec<Group<'_>> {
     let mut order: Vec<(&str, &str, &str)> = Vec::new();
     let mut by_key: BTreeMap<(&str, &str, &str), Vec<&ResultRow>> = BTreeMap::new();
     for r in rows {
-        let k = (
-            r.comparison.as_str(),
-            r.scenario.as_str(),
-            r.params.as_str(),
-        );
+        let k = (r.comparison.as_str(), r.scenario.as_str(), r.params.as_str());
         if !by_key.contains_key(&k) {
             order.push(k);
         }
@@ -279,10 +270,7 @@ fn group_rows(rows: &[ResultRow]) -> Vec<Group<'_>> {
             .unwrap_or_default();
         let mut metric_notes = Vec::new();
         if counts.len() > 1 {
-            let list: Vec<String> = counts
-                .iter()
-                .map(|(m, c)| format!("{m} ({c} rows)"))
-                .collect();
+            let list: Vec<String> = counts.iter().map(|(m, c)| format!("{m} ({c} rows)")).collect();
             metric_notes.push(format!(
                 "Rows name different primary errors: {}; tables and plots use {metric}.",
                 list.join(", ")
@@ -399,10 +387,7 @@ fn pareto_figure(g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figure, S
         legend,
         size: PLOT_SIZE,
     };
-    let alt = format!(
-        "{}: speed (ms/step) vs {}, one point per ok run",
-        g.title, g.metric
-    );
+    let alt = format!("{}: speed (ms/step) vs {}, one point per ok run", g.title, g.metric);
     Some((fig, alt))
 }
 
@@ -441,11 +426,7 @@ fn knob_range(knob: Knob, ns: &[f64]) -> String {
             fmt_plain(lo.log2()),
             fmt_plain(hi.log2())
         ),
-        Knob::Dt => format!(
-            "dt {} s down to {} s",
-            fmt_sig(1.0 / lo, 3),
-            fmt_sig(1.0 / hi, 3)
-        ),
+        Knob::Dt => format!("dt {} s down to {} s", fmt_sig(1.0 / lo, 3), fmt_sig(1.0 / hi, 3)),
     }
 }
 
@@ -470,12 +451,9 @@ fn convergence_figure(g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figu
         .iter()
         .filter(|r| r.status == "ok")
         .filter_map(|r| match g.err(r) {
-            Some(e) if !(e.is_finite() && e > 0.0) => Some(format!(
-                "{} ({} = {})",
-                run_label(r),
-                g.metric,
-                fmt_sig(e, 3)
-            )),
+            Some(e) if !(e.is_finite() && e > 0.0) => {
+                Some(format!("{} ({} = {})", run_label(r), g.metric, fmt_sig(e, 3)))
+            }
             _ => None,
         })
         .collect();
@@ -574,10 +552,7 @@ fn convergence_figure(g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figu
         return None;
     }
     let ticks: Vec<f64> = {
-        let mut v: Vec<f64> = series
-            .iter()
-            .flat_map(|s| s.points.iter().map(|p| p.0))
-            .collect();
+        let mut v: Vec<f64> = series.iter().flat_map(|s| s.points.iter().map(|p| p.0)).collect();
         v.sort_by(f64::total_cmp);
         v.dedup();
         v
@@ -613,12 +588,7 @@ fn convergence_figure(g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figu
 }
 
 /// Error over time from `observables.csv` of each model's finest ok run.
-fn error_time_figure(
-    dir: &Path,
-    g: &Group,
-    st: &Styles,
-    sec: &mut Section,
-) -> Option<(Figure, String)> {
+fn error_time_figure(dir: &Path, g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figure, String)> {
     let mut series = Vec::new();
     let mut legend = Vec::new();
     for model in &g.models {
@@ -637,10 +607,8 @@ fn error_time_figure(
         let s = match read_series(&path) {
             Ok(s) => s,
             Err(e) => {
-                sec.notes.push(format!(
-                    "Error over time: no curve for {}: {e}.",
-                    run_label(r)
-                ));
+                sec.notes
+                    .push(format!("Error over time: no curve for {}: {e}.", run_label(r)));
                 continue;
             }
         };
@@ -685,11 +653,7 @@ fn error_time_figure(
         return None;
     }
     let fig = Figure {
-        title: format!(
-            "{}: {} over time (finest ok run)",
-            g.title,
-            or_unknown(&g.metric)
-        ),
+        title: format!("{}: {} over time (finest ok run)", g.title, or_unknown(&g.metric)),
         panels: vec![Panel {
             title: String::new(),
             x: Axis::linear("simulated time t [s]"),
@@ -699,21 +663,13 @@ fn error_time_figure(
         legend,
         size: PLOT_SIZE,
     };
-    let alt = format!(
-        "{}: error over simulated time for each model's finest ok run",
-        g.title
-    );
+    let alt = format!("{}: error over simulated time for each model's finest ok run", g.title);
     Some((fig, alt))
 }
 
 /// Stability map: per model, a marker per (resolution, dt) coloured by status.
 fn stability_figure(g: &Group, _st: &Styles, sec: &mut Section) -> Option<(Figure, String)> {
-    let runs: Vec<&ResultRow> = g
-        .rows
-        .iter()
-        .copied()
-        .filter(|r| r.status != "unsupported")
-        .collect();
+    let runs: Vec<&ResultRow> = g.rows.iter().copied().filter(|r| r.status != "unsupported").collect();
     let knob = [Knob::Segments, Knob::MeshLevel]
         .into_iter()
         .find(|k| distinct(runs.iter().filter_map(|r| k.resolution(r))) >= 2)?;
@@ -749,10 +705,7 @@ fn stability_figure(g: &Group, _st: &Styles, sec: &mut Section) -> Option<(Figur
             }
             continue;
         }
-        let mut keys: Vec<(u64, u64)> = cells
-            .iter()
-            .map(|c| (c.0.to_bits(), c.1.to_bits()))
-            .collect();
+        let mut keys: Vec<(u64, u64)> = cells.iter().map(|c| (c.0.to_bits(), c.1.to_bits())).collect();
         let total = keys.len();
         keys.sort_unstable();
         keys.dedup();
@@ -844,11 +797,7 @@ fn stability_figure(g: &Group, _st: &Styles, sec: &mut Section) -> Option<(Figur
         legend,
         size,
     };
-    let alt = format!(
-        "{}: run status over {} and dt, per model",
-        g.title,
-        knob.key()
-    );
+    let alt = format!("{}: run status over {} and dt, per model", g.title, knob.key());
     Some((fig, alt))
 }
 
@@ -880,11 +829,7 @@ fn status_counts<'a>(rows: impl Iterator<Item = &'a ResultRow>) -> String {
 
 fn reason_text(r: &ResultRow) -> String {
     let reason = r.reason.trim();
-    let reason = if reason.is_empty() {
-        "(no reason given)"
-    } else {
-        reason
-    };
+    let reason = if reason.is_empty() { "(no reason given)" } else { reason };
     format!("{}: {}", or_unknown(&r.status), reason)
 }
 
@@ -914,16 +859,8 @@ fn stable_text(r: &ResultRow) -> String {
 }
 
 fn scenario_table(g: &Group) -> Block {
-    let ok: Vec<&ResultRow> = g
-        .rows
-        .iter()
-        .copied()
-        .filter(|r| r.status == "ok")
-        .collect();
-    let best_err = ok
-        .iter()
-        .filter_map(|r| usable(g.err(r)))
-        .fold(f64::INFINITY, f64::min);
+    let ok: Vec<&ResultRow> = g.rows.iter().copied().filter(|r| r.status == "ok").collect();
+    let best_err = ok.iter().filter_map(|r| usable(g.err(r))).fold(f64::INFINITY, f64::min);
     let best_t = ok
         .iter()
         .filter_map(|r| usable(r.ms_per_step_median))
@@ -991,11 +928,7 @@ fn scenario_table(g: &Group) -> Block {
             Cell::plain(num(r.real_time_factor)),
             Cell::plain(iters),
             Cell::plain(stable_text(r)),
-            Cell::plain(if r.end.is_empty() {
-                "—"
-            } else {
-                r.end.as_str()
-            }),
+            Cell::plain(if r.end.is_empty() { "—" } else { r.end.as_str() }),
         ]);
     }
     Block::Table { header, rows }
@@ -1047,13 +980,7 @@ fn summary_table(groups: &[Group], st: &Styles) -> Block {
     Block::Table { header, rows }
 }
 
-fn page(
-    info: &RunInfo,
-    rows: &[ResultRow],
-    groups: &[Group],
-    sections: &[Section],
-    st: &Styles,
-) -> Vec<Block> {
+fn page(info: &RunInfo, rows: &[ResultRow], groups: &[Group], sections: &[Section], st: &Styles) -> Vec<Block> {
     let mut b = vec![Block::Heading(
         1,
         format!("surgbench report: {}", or_unknown(&info.comparison)),
@@ -1063,11 +990,7 @@ fn page(
             "quick run: reduced sweeps and durations. Use it to check the pipeline, not to publish numbers.".into(),
         ));
     }
-    let versions: Vec<String> = info
-        .crate_versions
-        .iter()
-        .map(|(k, v)| format!("{k} {v}"))
-        .collect();
+    let versions: Vec<String> = info.crate_versions.iter().map(|(k, v)| format!("{k} {v}")).collect();
     let kv = |k: &str, v: String| vec![Cell::plain(k), Cell::plain(v)];
     b.push(Block::Table {
         header: vec!["run".into(), "".into()],
@@ -1076,10 +999,7 @@ fn page(
             kv("date", or_unknown(&info.date).into()),
             kv("commit", or_unknown(&info.commit).into()),
             kv("machine", or_unknown(&info.machine).into()),
-            kv(
-                "cores / threads",
-                format!("{} / {}", info.cores, info.threads),
-            ),
+            kv("cores / threads", format!("{} / {}", info.cores, info.threads)),
             kv("rustc", or_unknown(&info.rustc).into()),
             kv("command", or_unknown(&info.command).into()),
             kv("quick", if info.quick { "yes" } else { "no" }.into()),
@@ -1102,10 +1022,7 @@ fn page(
         status_counts(rows.iter())
     )));
 
-    b.push(Block::Heading(
-        2,
-        "Summary: finest fidelity of each model".into(),
-    ));
+    b.push(Block::Heading(2, "Summary: finest fidelity of each model".into()));
     b.push(Block::Para(
         "Each cell: the primary error and ms/step of the model's finest run in the scenario, or its status and reason when that run is not ok."
             .into(),

@@ -8,8 +8,8 @@ use std::fs;
 use std::path::Path;
 
 use surgbench_reports::{
-    FIXED_COLUMNS, ReportError, ResultRow, read_results_csv, read_run_info, read_series,
-    write_results_csv, write_run_info,
+    FIXED_COLUMNS, ReportError, ResultRow, read_results_csv, read_run_info, read_series, write_results_csv,
+    write_run_info,
 };
 
 #[test]
@@ -106,13 +106,7 @@ fn columns_are_found_by_name_and_extra_columns_are_metrics() {
     write_results_csv(&path, &common::rows()).unwrap();
     let text = fs::read_to_string(&path).unwrap();
     let mut rd = csv::ReaderBuilder::new().from_reader(text.as_bytes());
-    let header: Vec<String> = rd
-        .headers()
-        .unwrap()
-        .iter()
-        .rev()
-        .map(String::from)
-        .collect();
+    let header: Vec<String> = rd.headers().unwrap().iter().rev().map(String::from).collect();
     let mut w = csv::Writer::from_path(&path).unwrap();
     w.write_record(&header).unwrap();
     for rec in rd.records() {
@@ -137,11 +131,7 @@ fn good_file() -> Vec<String> {
     let tmp = tempfile::tempdir().unwrap();
     let path = tmp.path().join("results.csv");
     write_results_csv(&path, &common::rows()[..3]).unwrap();
-    fs::read_to_string(&path)
-        .unwrap()
-        .lines()
-        .map(String::from)
-        .collect()
+    fs::read_to_string(&path).unwrap().lines().map(String::from).collect()
 }
 
 fn set_cell(line: &str, col: usize, value: &str) -> String {
@@ -171,10 +161,7 @@ fn missing_fixed_column_is_named() {
 #[test]
 fn non_numeric_value_is_named_with_line_and_column() {
     let mut lines = good_file();
-    let col = FIXED_COLUMNS
-        .iter()
-        .position(|c| *c == "ms_per_step_median")
-        .unwrap();
+    let col = FIXED_COLUMNS.iter().position(|c| *c == "ms_per_step_median").unwrap();
     lines[2] = set_cell(&lines[2], col, "fast");
     let (msg, _) = error_of(&lines);
     assert!(
@@ -250,22 +237,12 @@ fn run_info_round_trip_and_partial_file() {
     write_run_info(&path, &common::info()).unwrap();
     assert_eq!(read_run_info(&path).unwrap(), common::info());
     // The harness's summary may lack fields or carry more.
-    fs::write(
-        &path,
-        r#"{"commit": "abc", "cores": 2, "errors": {"x": 1}}"#,
-    )
-    .unwrap();
+    fs::write(&path, r#"{"commit": "abc", "cores": 2, "errors": {"x": 1}}"#).unwrap();
     let info = read_run_info(&path).unwrap();
-    assert_eq!(
-        (info.commit.as_str(), info.cores, info.threads),
-        ("abc", 2, 0)
-    );
+    assert_eq!((info.commit.as_str(), info.cores, info.threads), ("abc", 2, 0));
     fs::write(&path, r#"{"cores": "two"}"#).unwrap();
     let msg = read_run_info(&path).unwrap_err().to_string();
-    assert!(
-        msg.contains("summary.json") && msg.contains("line 1"),
-        "{msg}"
-    );
+    assert!(msg.contains("summary.json") && msg.contains("line 1"), "{msg}");
 }
 
 fn write(dir: &Path, name: &str, text: &str) -> std::path::PathBuf {
@@ -305,9 +282,7 @@ fn series_reader_fills_gaps_with_nan_and_names_errors() {
     let p = write(tmp.path(), "no_t.csv", "time,error\n0,1\n");
     let msg = read_series(&p).unwrap_err().to_string();
     assert!(msg.contains("line 1") && msg.contains("`t`"), "{msg}");
-    let msg = read_series(&tmp.path().join("missing.csv"))
-        .unwrap_err()
-        .to_string();
+    let msg = read_series(&tmp.path().join("missing.csv")).unwrap_err().to_string();
     assert!(msg.contains("missing.csv"), "{msg}");
 }
 
@@ -323,8 +298,5 @@ fn metrics_map_is_sorted_union() {
     write_results_csv(&path, &[a.clone(), b.clone()]).unwrap();
     let back = read_results_csv(&path).unwrap();
     assert_eq!(back[0].metrics, BTreeMap::from([("z_m".to_string(), 1.0)]));
-    assert_eq!(
-        back[1].metrics,
-        BTreeMap::from([("a_rel".to_string(), 2.0)])
-    );
+    assert_eq!(back[1].metrics, BTreeMap::from([("a_rel".to_string(), 2.0)]));
 }

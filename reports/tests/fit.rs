@@ -12,10 +12,7 @@ fn recovers_exact_orders() {
         let e: Vec<f64> = n.iter().map(|n: &f64| c * n.powf(-p_true)).collect();
         let p = fit_order(&n, &e).expect("five points fit");
         // Exact power law: only rounding of ln/pow remains, ~1e-15 relative.
-        assert!(
-            (p - p_true).abs() < 1e-12,
-            "p_true={p_true} C={c}: fitted {p}"
-        );
+        assert!((p - p_true).abs() < 1e-12, "p_true={p_true} C={c}: fitted {p}");
     }
     // Non-uniform spacing and unsorted input.
     let n = [40.0, 10.0, 13.0, 100.0];
@@ -28,9 +25,7 @@ fn recovers_exact_orders() {
 fn least_squares_on_noisy_data() {
     // Multiplicative noise of +-5 % around C n^-2 over one decade of n.
     let mut rng = common::SplitMix(7);
-    let n: Vec<f64> = (0..12)
-        .map(|i| 10.0 * 10f64.powf(i as f64 / 11.0))
-        .collect();
+    let n: Vec<f64> = (0..12).map(|i| 10.0 * 10f64.powf(i as f64 / 11.0)).collect();
     let e: Vec<f64> = n
         .iter()
         .map(|n| 0.3 * n.powi(-2) * (1.0 + 0.1 * (rng.unit() - 0.5)))
@@ -42,10 +37,7 @@ fn least_squares_on_noisy_data() {
     let mx = x.iter().sum::<f64>() / x.len() as f64;
     let bound = -(0.95f64.ln()) * x.iter().map(|x| (x - mx).abs()).sum::<f64>()
         / x.iter().map(|x| (x - mx).powi(2)).sum::<f64>();
-    assert!(
-        (p - 2.0).abs() <= bound,
-        "noisy fit {p}, worst-case bound {bound}"
-    );
+    assert!((p - 2.0).abs() <= bound, "noisy fit {p}, worst-case bound {bound}");
 }
 
 #[test]
@@ -80,15 +72,10 @@ fn pareto_front_keeps_only_non_dominated_points() {
     let pts: Vec<(f64, f64)> = (0..200).map(|_| (rng.unit(), rng.unit())).collect();
     let front = pareto_front(&pts);
     for (i, p) in pts.iter().enumerate() {
-        let dominated = pts
-            .iter()
-            .any(|q| q.0 <= p.0 && q.1 <= p.1 && (q.0 < p.0 || q.1 < p.1));
+        let dominated = pts.iter().any(|q| q.0 <= p.0 && q.1 <= p.1 && (q.0 < p.0 || q.1 < p.1));
         assert_eq!(front.contains(&i), !dominated, "point {i} {p:?}");
     }
-    assert!(
-        front.windows(2).all(|w| pts[w[0]].0 < pts[w[1]].0),
-        "not time-ordered"
-    );
+    assert!(front.windows(2).all(|w| pts[w[0]].0 < pts[w[1]].0), "not time-ordered");
 }
 
 #[test]
@@ -116,8 +103,5 @@ fn tick_and_table_formatting() {
         ["2e-3", "5e-3", "1e-2", "2e-2"]
     );
     let (bold, _) = log_ticks(2.1, 4.5);
-    assert_eq!(
-        bold.iter().map(|v| fmt_tick(*v)).collect::<Vec<_>>(),
-        ["3", "4"]
-    );
+    assert_eq!(bold.iter().map(|v| fmt_tick(*v)).collect::<Vec<_>>(), ["3", "4"]);
 }

@@ -49,25 +49,11 @@ fn writes_every_expected_file_non_empty() {
     for stem in expected {
         for ext in ["svg", "png"] {
             let p = dir.join(format!("{stem}.{ext}"));
-            assert!(
-                files.contains(&p),
-                "{} not in the returned list {files:?}",
-                p.display()
-            );
+            assert!(files.contains(&p), "{} not in the returned list {files:?}", p.display());
             let bytes = fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
-            assert!(
-                bytes.len() > 1000,
-                "{} has only {} bytes",
-                p.display(),
-                bytes.len()
-            );
+            assert!(bytes.len() > 1000, "{} has only {} bytes", p.display(), bytes.len());
             if ext == "png" {
-                assert_eq!(
-                    &bytes[..8],
-                    b"\x89PNG\r\n\x1a\n",
-                    "{} is not a PNG",
-                    p.display()
-                );
+                assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{} is not a PNG", p.display());
             } else {
                 let s = String::from_utf8_lossy(&bytes);
                 assert!(
@@ -110,9 +96,7 @@ fn pages_show_reasons_orders_and_header() {
         assert!(html.contains(reason), "index.html lacks reason {reason:?}");
     }
     assert!(
-        html.contains(
-            "build failed: segments=5 is below the minimum of 8, &quot;rod too coarse&quot;"
-        ),
+        html.contains("build failed: segments=5 is below the minimum of 8, &quot;rod too coarse&quot;"),
         "index.html lacks the escaped failure reason"
     );
     // Orders: der exactly 2 in segments, pbd-rod exactly 1, fem 2 in cells per side.
@@ -146,10 +130,7 @@ fn pages_show_reasons_orders_and_header() {
         "no convergence image in md"
     );
     // What the plots leave out is said: the run without a time series, unsupported runs.
-    assert!(
-        md.contains("unsupported runs are not drawn"),
-        "stability note missing"
-    );
+    assert!(md.contains("unsupported runs are not drawn"), "stability note missing");
     assert!(
         html.contains("<td class=\"warn\">unsupported</td>"),
         "unsupported status not flagged"
@@ -162,11 +143,7 @@ fn missing_time_series_is_noted_not_fatal() {
     let rows = common::rows();
     // No observables.csv written at all.
     let files = render(tmp.path(), &rows, &common::info()).unwrap();
-    assert!(
-        !tmp.path()
-            .join("plots/cantilever-gravity-error-time.svg")
-            .exists()
-    );
+    assert!(!tmp.path().join("plots/cantilever-gravity-error-time.svg").exists());
     assert!(files.iter().any(|f| f.ends_with("report.md")));
     let md = read(&tmp.path().join("report.md"));
     assert!(
@@ -179,10 +156,8 @@ fn missing_time_series_is_noted_not_fatal() {
 fn deterministic_and_reproducible_from_csv() {
     let (tmp, files) = rendered();
     let dir = tmp.path();
-    let snapshot: Vec<(std::path::PathBuf, Vec<u8>)> = files
-        .iter()
-        .map(|f| (f.clone(), fs::read(f).unwrap()))
-        .collect();
+    let snapshot: Vec<(std::path::PathBuf, Vec<u8>)> =
+        files.iter().map(|f| (f.clone(), fs::read(f).unwrap())).collect();
     // Re-render from the files alone (what `surgbench report DIR` does).
     let again = render_dir(dir).unwrap();
     assert_eq!(again, files, "a re-render writes a different set of files");
@@ -194,10 +169,7 @@ fn deterministic_and_reproducible_from_csv() {
             f.display()
         );
     }
-    assert_eq!(
-        read_results_csv(&dir.join("results.csv")).unwrap(),
-        common::rows()
-    );
+    assert_eq!(read_results_csv(&dir.join("results.csv")).unwrap(), common::rows());
 }
 
 #[test]

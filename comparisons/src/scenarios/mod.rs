@@ -1,5 +1,5 @@
 //! The scenario catalogue.
 
 pub mod rod;
-pub mod vessel;
 pub mod tissue;
+pub mod vessel;

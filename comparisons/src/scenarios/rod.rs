@@ -24,9 +24,21 @@ const fn p(name: &'static str, default: f64, unit: &'static str, range: Range, d
 }
 
 const LENGTH: ParamSpec = p("length", 0.1, "m", Range::Positive, "free length of the rod");
-const RADIUS: ParamSpec = p("radius", 5e-4, "m", Range::Positive, "radius of the solid circular section");
+const RADIUS: ParamSpec = p(
+    "radius",
+    5e-4,
+    "m",
+    Range::Positive,
+    "radius of the solid circular section",
+);
 const YOUNG: ParamSpec = p("youngs_modulus", 5e10, "Pa", Range::Positive, "Young's modulus");
-const POISSON: ParamSpec = p("poisson_ratio", 0.3, "1", Range::Open(-1.0, 0.5), "Poisson ratio (G = E/(2(1+nu)))");
+const POISSON: ParamSpec = p(
+    "poisson_ratio",
+    0.3,
+    "1",
+    Range::Open(-1.0, 0.5),
+    "Poisson ratio (G = E/(2(1+nu)))",
+);
 const DENSITY: ParamSpec = p("density", 6450.0, "kg/m^3", Range::Positive, "density");
 const SETTLE: ParamSpec = p(
     "settle_tol",
@@ -35,7 +47,13 @@ const SETTLE: ParamSpec = p(
     Range::Positive,
     "static equilibrium when every node is slower than this",
 );
-const DURATION: ParamSpec = p("duration", 5.0, "s", Range::Positive, "longest simulated time to reach equilibrium");
+const DURATION: ParamSpec = p(
+    "duration",
+    5.0,
+    "s",
+    Range::Positive,
+    "longest simulated time to reach equilibrium",
+);
 
 /// Rod geometry and material resolved from parameters.
 #[derive(Debug, Clone, Copy)]
@@ -121,10 +139,16 @@ fn score_elastica(obs: &Observation, e: &Elastica, total_load: f64) -> BTreeMap<
         m.insert("tip_angle_error_rad".into(), (ang - e.tip_angle()).abs());
     }
     let f_ref = Vec3::new(0.0, 0.0, -total_load);
-    m.insert("hand_force_error_rel".into(), (obs.hand_force - f_ref).norm() / total_load);
+    m.insert(
+        "hand_force_error_rel".into(),
+        (obs.hand_force - f_ref).norm() / total_load,
+    );
     // Torque the rod exerts on the clamp: m(0) = -EI phi'(0) e_y.
     let t_ref = Vec3::new(0.0, -e.base_moment, 0.0);
-    m.insert("hand_torque_error_rel".into(), (obs.hand_torque - t_ref).norm() / e.base_moment.abs());
+    m.insert(
+        "hand_torque_error_rel".into(),
+        (obs.hand_torque - t_ref).norm() / e.base_moment.abs(),
+    );
     m.insert("max_stretch".into(), rod.max_stretch.abs());
     m
 }
@@ -146,7 +170,10 @@ impl ScenarioRun for CantileverRun {
     fn score(&self, obs: &Observation) -> BTreeMap<String, f64> {
         let mut m = score_elastica(obs, &self.reference, self.load);
         if let Some(r) = obs.rods.first() {
-            m.insert("tip_error_vs_euler_bernoulli_rel".into(), ((-r.tip().z) - self.eb_tip).abs() / self.eb_tip);
+            m.insert(
+                "tip_error_vs_euler_bernoulli_rel".into(),
+                ((-r.tip().z) - self.eb_tip).abs() / self.eb_tip,
+            );
         }
         m
     }
@@ -261,7 +288,9 @@ impl Scenario for CantileverTipLoad {
         let q = c.weight_per_length(g);
         let force = p.get("tip_force");
         if q == 0.0 && force == 0.0 {
-            return Err(UsageError("cantilever-tip-load needs tip_force > 0 or gravity > 0".into()));
+            return Err(UsageError(
+                "cantilever-tip-load needs tip_force > 0 or gravity > 0".into(),
+            ));
         }
         let alpha = force * c.length * c.length / c.ei();
         if alpha > 10.0 {
@@ -277,7 +306,8 @@ impl Scenario for CantileverTipLoad {
         scene.bodies.push(body.into());
         Ok(Box::new(CantileverRun {
             scene,
-            eb_tip: elastica::eb_tip_force(force, c.length, c.ei(), c.length) + elastica::eb_uniform_tip(q, c.length, c.ei()),
+            eb_tip: elastica::eb_tip_force(force, c.length, c.ei(), c.length)
+                + elastica::eb_uniform_tip(q, c.length, c.ei()),
             reference,
             load: q * c.length + force,
         }))
@@ -293,7 +323,13 @@ const TORQUE_PARAMS: &[ParamSpec] = &[
     YOUNG,
     POISSON,
     DENSITY,
-    p("base_twist", PI / 2.0, "rad", Range::Any, "rotation of the clamp about the rod axis"),
+    p(
+        "base_twist",
+        PI / 2.0,
+        "rad",
+        Range::Any,
+        "rotation of the clamp about the rod axis",
+    ),
     p(
         "tip_torque",
         0.0,
@@ -337,7 +373,10 @@ impl ScenarioRun for TorqueRun {
         // frame (d1 = +y), about the (straight) rod axis.
         let angle = signed_angle(&Vec3::y(), &d1, &t);
         m.insert("twist_error_rad".into(), wrap(angle - self.twist).abs());
-        m.insert("tip_position_error_m".into(), (r.tip() - Vec3::new(self.length, 0.0, 0.0)).norm());
+        m.insert(
+            "tip_position_error_m".into(),
+            (r.tip() - Vec3::new(self.length, 0.0, 0.0)).norm(),
+        );
         let t_ref = Vec3::new(self.torque, 0.0, 0.0);
         m.insert("hand_torque_error_nm".into(), (obs.hand_torque - t_ref).norm());
         m.insert("max_stretch".into(), r.max_stretch.abs());

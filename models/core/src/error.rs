@@ -14,9 +14,7 @@ pub struct Unsupported {
 impl Unsupported {
     /// Build from any displayable reason.
     pub fn new(reason: impl Into<String>) -> Self {
-        Self {
-            reason: reason.into(),
-        }
+        Self { reason: reason.into() }
     }
 }
 

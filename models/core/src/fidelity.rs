@@ -167,11 +167,7 @@ impl Fidelity {
 impl fmt::Display for Fidelity {
     /// `segments=20;dt=0.001` form, stable across runs (used in file names and CSV).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let parts: Vec<String> = self
-            .pairs()
-            .into_iter()
-            .map(|(k, v)| format!("{k}={v}"))
-            .collect();
+        let parts: Vec<String> = self.pairs().into_iter().map(|(k, v)| format!("{k}={v}")).collect();
         f.write_str(&parts.join(";"))
     }
 }

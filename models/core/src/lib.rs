@@ -33,8 +33,8 @@ pub use fidelity::{Fidelity, FidelityKey};
 pub use model::{Capability, EnergyProbe, Family, Model, ModelFactory, StepStats};
 pub use observation::{ContactObs, EnergyObs, Observation, RodObs, TissueObs};
 pub use scene::{
-    Body, ContactParams, ControlKey, ControlTimeline, DeviceCommand, Environment, RodBody,
-    RodSection, Scene, Settle, SolidMaterial, TetMesh, TissueBody,
+    Body, ContactParams, ControlKey, ControlTimeline, DeviceCommand, Environment, RodBody, RodSection, Scene, Settle,
+    SolidMaterial, TetMesh, TissueBody,
 };
 pub use sdf::Sdf;
 

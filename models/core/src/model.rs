@@ -182,7 +182,11 @@ pub trait ModelFactory: Send + Sync {
         if missing.is_empty() {
             Ok(())
         } else {
-            Err(Unsupported::new(format!("{} does not model: {}", self.id(), missing.join(", "))))
+            Err(Unsupported::new(format!(
+                "{} does not model: {}",
+                self.id(),
+                missing.join(", ")
+            )))
         }
     }
 

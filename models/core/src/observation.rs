@@ -101,10 +101,11 @@ impl Observation {
     /// Whether every number in the observation is finite.
     pub fn is_finite(&self) -> bool {
         let v = |x: &Vec3| x.iter().all(|c| c.is_finite());
-        self.rods
-            .iter()
-            .all(|r| r.nodes.iter().all(v) && r.velocities.iter().all(v) && r.frames.iter().all(|m| m.iter().all(|c| c.is_finite())))
-            && self.tissues.iter().all(|t| t.nodes.iter().all(v))
+        self.rods.iter().all(|r| {
+            r.nodes.iter().all(v)
+                && r.velocities.iter().all(v)
+                && r.frames.iter().all(|m| m.iter().all(|c| c.is_finite()))
+        }) && self.tissues.iter().all(|t| t.nodes.iter().all(v))
             && v(&self.hand_force)
             && v(&self.hand_torque)
             && self.energy.total().is_finite()

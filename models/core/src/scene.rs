@@ -134,7 +134,10 @@ impl RodBody {
             }
         }
         if (prev - self.length).abs() > 1e-12 * self.length {
-            return Err(format!("last rod section ends at {prev} m but the rod is {} m long", self.length));
+            return Err(format!(
+                "last rod section ends at {prev} m but the rod is {} m long",
+                self.length
+            ));
         }
         if !(self.tip_force.iter().all(|x| x.is_finite()) && self.tip_torque.iter().all(|x| x.is_finite())) {
             return Err("tip loads must be finite".into());
@@ -169,7 +172,10 @@ impl TetMesh {
         for (e, t) in self.tets.iter().enumerate() {
             for &i in t {
                 if i >= self.nodes.len() {
-                    return Err(format!("tet {e} refers to node {i} but the mesh has {} nodes", self.nodes.len()));
+                    return Err(format!(
+                        "tet {e} refers to node {i} but the mesh has {} nodes",
+                        self.nodes.len()
+                    ));
                 }
             }
             let [a, b, c, d] = t.map(|i| self.nodes[i]);
@@ -363,7 +369,10 @@ impl ControlTimeline {
                 let i = k.partition_point(|key| key.t <= t) - 1;
                 let (a, b) = (k[i], k[i + 1]);
                 let w = (t - a.t) / (b.t - a.t);
-                (a.insertion + w * (b.insertion - a.insertion), a.rotation + w * (b.rotation - a.rotation))
+                (
+                    a.insertion + w * (b.insertion - a.insertion),
+                    a.rotation + w * (b.rotation - a.rotation),
+                )
             }
         };
         DeviceCommand {
@@ -505,19 +514,25 @@ impl Scene {
                 Body::Tissue(t) => {
                     t.mesh.validate()?;
                     let n = t.mesh.nodes.len();
-                    let bad = t.fixed_nodes.iter().copied()
+                    let bad = t
+                        .fixed_nodes
+                        .iter()
+                        .copied()
                         .chain(t.driven_nodes.iter().map(|d| d.0))
                         .chain(t.partial_fixed.iter().map(|d| d.0))
                         .chain(t.pressure_faces.iter().flat_map(|f| f.0))
                         .find(|&i| i >= n);
                     if let Some(i) = bad {
-                        return Err(format!("tissue boundary condition refers to node {i} but the mesh has {n} nodes"));
+                        return Err(format!(
+                            "tissue boundary condition refers to node {i} but the mesh has {n} nodes"
+                        ));
                     }
                     if t.pressure_faces.iter().any(|f| !f.1.is_finite()) {
                         return Err("tissue pressure must be finite".into());
                     }
                     let m = &t.material;
-                    let ok = m.youngs_modulus > 0.0 && m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5 && m.density > 0.0;
+                    let ok =
+                        m.youngs_modulus > 0.0 && m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5 && m.density > 0.0;
                     if !ok {
                         return Err(format!("bad tissue material {m:?}"));
                     }

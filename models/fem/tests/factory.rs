@@ -57,7 +57,10 @@ fn factory_contract() {
         .unwrap();
     assert!(e.to_string().contains("material_law"), "{e}");
     // `mesh_level` belongs to the scenario (it builds the mesh): fem accepts it.
-    assert!(f.build(&scene(false), &Fidelity::parse_pairs(&["mesh_level=2"]).unwrap()).is_ok());
+    assert!(
+        f.build(&scene(false), &Fidelity::parse_pairs(&["mesh_level=2"]).unwrap())
+            .is_ok()
+    );
     let mut bad_mesh = scene(false);
     if let Body::Tissue(t) = &mut bad_mesh.bodies[0] {
         t.fixed_nodes.push(10_000);

@@ -114,7 +114,8 @@ impl ModelFactory for PbdRodFactory {
             && let Some(rod) = scene.rods().next()
         {
             let s = &rod.sections[0];
-            let w1 = 1.875f64.powi(2) * (s.youngs_modulus * s.second_moment() / (s.density * s.area() * rod.length.powi(4))).sqrt();
+            let w1 = 1.875f64.powi(2)
+                * (s.youngs_modulus * s.second_moment() / (s.density * s.area() * rod.length.powi(4))).sqrt();
             f.extras.insert("damping".into(), 2.0 * w1);
         }
         f

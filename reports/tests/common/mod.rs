@@ -25,10 +25,8 @@ impl SplitMix {
     }
 }
 
-pub const UNSUPPORTED_REASON: &str =
-    "chainmail has no bending stiffness under distributed gravity load";
-pub const FAILED_REASON: &str =
-    "build failed: segments=5 is below the minimum of 8, \"rod too coarse\"";
+pub const UNSUPPORTED_REASON: &str = "chainmail has no bending stiffness under distributed gravity load";
+pub const FAILED_REASON: &str = "build failed: segments=5 is below the minimum of 8, \"rod too coarse\"";
 pub const UNSTABLE_REASON: &str = "energy grew by 1e6 at t = 0.12 s";
 pub const TISSUE_UNSUPPORTED: &str = "pbd-tissue cannot apply a pressure load";
 
@@ -130,10 +128,7 @@ pub fn rows() -> Vec<ResultRow> {
         let l = level as f64;
         let cells = 2f64.powi(level);
         let mut metrics = BTreeMap::new();
-        metrics.insert(
-            "displacement_error_l2_m".to_string(),
-            2e-3 / (cells * cells),
-        );
+        metrics.insert("displacement_error_l2_m".to_string(), 2e-3 / (cells * cells));
         rows.push(ResultRow {
             comparison: "standard".into(),
             scenario: "lame-tube".into(),
@@ -192,27 +187,19 @@ pub fn info() -> RunInfo {
 /// Writes `observables.csv` for the finest ok runs of `der` and `pbd-rod`
 /// (error decaying from 1e-1 towards the converged value, one empty cell).
 pub fn write_series(dir: &Path, rows: &[ResultRow]) {
-    for (model, seg, dt, floor) in [
-        ("der", 80.0, 5e-4, 0.3 / 6400.0),
-        ("pbd-rod", 80.0, 1e-3, 0.05 / 80.0),
-    ] {
+    for (model, seg, dt, floor) in [("der", 80.0, 5e-4, 0.3 / 6400.0), ("pbd-rod", 80.0, 1e-3, 0.05 / 80.0)] {
         let r = rows
             .iter()
             .find(|r| r.model == model && r.segments == Some(seg) && r.dt == Some(dt))
             .expect("synthetic row exists");
         let d = dir.join(&r.run_dir);
         fs::create_dir_all(&d).unwrap();
-        let mut text = String::from(
-            "t,tip_x,tip_y,tip_z,hand_fx,hand_fy,hand_fz,hand_tx,hand_ty,hand_tz,energy,error\n",
-        );
+        let mut text =
+            String::from("t,tip_x,tip_y,tip_z,hand_fx,hand_fy,hand_fz,hand_tx,hand_ty,hand_tz,energy,error\n");
         for i in 0..=200 {
             let t = i as f64 * 0.005;
             let e = floor + 0.1 * (-t / 0.1).exp();
-            let cell = if i == 7 {
-                String::new()
-            } else {
-                format!("{e}")
-            };
+            let cell = if i == 7 { String::new() } else { format!("{e}") };
             text.push_str(&format!("{t},0.3,0,-0.01,0,0,0.5,0,0,0,1e-3,{cell}\n"));
         }
         fs::write(d.join("observables.csv"), text).unwrap();
