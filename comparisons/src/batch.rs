@@ -179,10 +179,15 @@ fn run_job(c: &Comparison, job: &Job, runs: &Path, opts: &BatchOptions, repeats:
         row.reason = reason.clone();
         return row;
     }
-    let rel = PathBuf::from("runs")
-        .join(&job.scenario)
-        .join(&job.model)
-        .join(slug(&job.fidelity.to_string()));
+    // Parameter overrides are part of the folder name: one scenario may
+    // appear several times in a comparison with different parameters.
+    let scen_dir = if job.params.is_empty() {
+        job.scenario.clone()
+    } else {
+        let p: Vec<String> = job.params.iter().map(|(k, v)| format!("{k}={v}")).collect();
+        format!("{}@{}", job.scenario, slug(&p.join(";")))
+    };
+    let rel = PathBuf::from("runs").join(scen_dir).join(&job.model).join(slug(&job.fidelity.to_string()));
     let dir = runs.parent().expect("runs has a parent").join(&rel);
     if let Some(p) = dir.parent() {
         let _ = std::fs::create_dir_all(p);

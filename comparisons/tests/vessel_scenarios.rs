@@ -188,10 +188,11 @@ fn branch_selection_j_tip_starts_inside_and_sessions_load() {
         let scene = r.scene();
         let rod = scene.rods().next().unwrap();
         let j = rod.sections.last().unwrap();
-        let kappa = j.rest_curvature[0];
+        // Darboux component on d2 turns the tangent towards d1 (local y).
+        assert_eq!(j.rest_curvature[0], 0.0);
+        let kappa = j.rest_curvature[1];
         let jl = j.until - rod.sections[rod.sections.len() - 2].until;
-        // The J's rest arc, bending towards the clamp's local y (DER: kappa_1
-        // about d2 turns the tangent towards d1).
+        // The J's rest arc, bending towards the clamp's local y.
         let start = rod.sections[rod.sections.len() - 2].until;
         for k in 0..=20 {
             let a = kappa * jl * k as f64 / 20.0;
@@ -271,7 +272,8 @@ fn arch_insertion_scores_reach_time_force_and_penetration() {
         "centreline wire penetrates: {}",
         e["max_penetration_m"]
     );
-    assert!((e["hand_force_mean_n"] - 0.1).abs() < 1e-15 && (e["hand_force_max_n"] - 0.1).abs() < 1e-15);
+    // The mean sums every step's force (7500 terms): n eps relative rounding.
+    assert!((e["hand_force_mean_n"] - 0.1).abs() < 1e-12 && (e["hand_force_max_n"] - 0.1).abs() < 1e-15);
     assert_eq!(e["reference_available"], 0.0, "no cached reference is committed");
     assert!(!e.contains_key("tip_error_m"), "no reference, no tip error");
     let progress = ENTRY_S + 0.05 + 0.02 * 7.5;
@@ -615,7 +617,9 @@ fn branch_selection_success_and_miss() {
     // Tip 5 mm into the branch: ENTRY_S + 0.032 + insertion = 0.040 + 0.005,
     // insertion 8 mm at 10 mm/s from t = 1.5 s: t = 2.3 s (sampled every 12.5 ms).
     let t = e["time_to_target_s"];
-    assert!((2.3..=2.3 + 5.0 / 400.0 + 1e-3).contains(&t), "time to target {t}");
+    // Every step is observed (observe_step): time is (k + 1) dt, which may
+    // round a few ulps below 2.3.
+    assert!((2.3 - 1e-9..=2.3 + 5.0 / 400.0 + 1e-3).contains(&t), "time to target {t}");
     assert_eq!(e["max_penetration_m"], 0.0);
     let sum = run(s, &params(s, &[("target", 1.0)]), &f);
     assert_eq!(sum.errors["success"], 0.0);

@@ -848,6 +848,14 @@ pub fn locate(mesh: &TetMesh, p: &Vec3) -> Option<(usize, [f64; 4])> {
 }
 
 /// Truth Cube phantom under uniaxial compression between bonded plates.
+///
+/// Boundary conditions: bonded (no-slip) plates, the base held, the top
+/// moved down by the nominal strain times 80 mm; the only plate model the
+/// scene types express (a driven node is driven along all three axes). The
+/// data show the loaded face slipped: its nearest bead layer bulges about as
+/// much as the mid-height layers (0.9 mm at 5 %, 3.0 mm at 18.25 %, where a
+/// bonded FEM gives 0.3 and 1.1 mm) and drifts 1.3-1.9 mm sideways, so
+/// every model here carries a boundary-condition error of that size.
 pub struct TruthCube;
 
 /// Literature material: Kerdok et al. 2003 (RTV6166 gel, 30:70), with the

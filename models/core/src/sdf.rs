@@ -580,7 +580,8 @@ impl SweptTube {
 
     fn radius_and_slope(&self, s: f64) -> (f64, f64) {
         let p = &self.profile;
-        if s <= p[0].0 {
+        // `!(s > ..)` also catches a NaN arclength (a degenerate query).
+        if !(s > p[0].0) {
             return (p[0].1, 0.0);
         }
         let n = p.len();
