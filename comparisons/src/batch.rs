@@ -187,7 +187,10 @@ fn run_job(c: &Comparison, job: &Job, runs: &Path, opts: &BatchOptions, repeats:
         let p: Vec<String> = job.params.iter().map(|(k, v)| format!("{k}={v}")).collect();
         format!("{}@{}", job.scenario, slug(&p.join(";")))
     };
-    let rel = PathBuf::from("runs").join(scen_dir).join(&job.model).join(slug(&job.fidelity.to_string()));
+    let rel = PathBuf::from("runs")
+        .join(scen_dir)
+        .join(&job.model)
+        .join(slug(&job.fidelity.to_string()));
     let dir = runs.parent().expect("runs has a parent").join(&rel);
     if let Some(p) = dir.parent() {
         let _ = std::fs::create_dir_all(p);

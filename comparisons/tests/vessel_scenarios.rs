@@ -619,7 +619,10 @@ fn branch_selection_success_and_miss() {
     let t = e["time_to_target_s"];
     // Every step is observed (observe_step): time is (k + 1) dt, which may
     // round a few ulps below 2.3.
-    assert!((2.3 - 1e-9..=2.3 + 5.0 / 400.0 + 1e-3).contains(&t), "time to target {t}");
+    assert!(
+        (2.3 - 1e-9..=2.3 + 5.0 / 400.0 + 1e-3).contains(&t),
+        "time to target {t}"
+    );
     assert_eq!(e["max_penetration_m"], 0.0);
     let sum = run(s, &params(s, &[("target", 1.0)]), &f);
     assert_eq!(sum.errors["success"], 0.0);
