@@ -107,7 +107,7 @@ impl ModelFactory for ChainmailFactory {
         "chainmail"
     }
     fn description(&self) -> &'static str {
-        "generalized 3D chain-mail guidewire (geometric valid boxes + relaxation, world-axis boxes as in the paper)"
+        "generalized 3D chain-mail guidewire (geometric valid boxes + relaxation; boxes in the clamp frame, the paper's world axes with frame=0)"
     }
     fn family(&self) -> Family {
         Family::Rod
@@ -128,18 +128,7 @@ impl ModelFactory for ChainmailFactory {
     }
 
     fn check(&self, scene: &Scene) -> Result<(), Unsupported> {
-        let missing: Vec<&str> = scene
-            .required_capabilities()
-            .into_iter()
-            .filter(|c| !CAPABILITIES.contains(c))
-            .map(|c| c.name())
-            .collect();
-        if !missing.is_empty() {
-            return Err(Unsupported::new(format!(
-                "chainmail does not model: {}",
-                missing.join(", ")
-            )));
-        }
+        surgbench_core::model::check_capabilities(self.id(), self.capabilities(), scene)?;
         if scene.rods().count() != 1 || scene.tissues().count() != 0 {
             return Err(Unsupported::new("chainmail simulates exactly one rod and no tissue"));
         }

@@ -172,24 +172,26 @@ pub trait ModelFactory: Send + Sync {
     /// Can the model run this scene? Default: every required capability is
     /// supported; otherwise [`Unsupported`] names the missing ones.
     fn check(&self, scene: &Scene) -> Result<(), Unsupported> {
-        let have = self.capabilities();
-        let missing: Vec<&str> = scene
-            .required_capabilities()
-            .into_iter()
-            .filter(|c| !have.contains(c))
-            .map(|c| c.name())
-            .collect();
-        if missing.is_empty() {
-            Ok(())
-        } else {
-            Err(Unsupported::new(format!(
-                "{} does not model: {}",
-                self.id(),
-                missing.join(", ")
-            )))
-        }
+        check_capabilities(self.id(), self.capabilities(), scene)
     }
 
     /// Build the model at `fidelity` (unset knobs take the model's defaults).
     fn build(&self, scene: &Scene, fidelity: &Fidelity) -> Result<Box<dyn Model>, BuildError>;
+}
+
+/// `Ok` if `have` covers every capability `scene` requires; otherwise
+/// [`Unsupported`] naming the missing ones. The default
+/// [`ModelFactory::check`]; factories with extra conditions call it first.
+pub fn check_capabilities(id: &str, have: &[Capability], scene: &Scene) -> Result<(), Unsupported> {
+    let missing: Vec<&str> = scene
+        .required_capabilities()
+        .into_iter()
+        .filter(|c| !have.contains(c))
+        .map(|c| c.name())
+        .collect();
+    if missing.is_empty() {
+        Ok(())
+    } else {
+        Err(Unsupported::new(format!("{id} does not model: {}", missing.join(", "))))
+    }
 }

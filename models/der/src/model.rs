@@ -120,17 +120,7 @@ impl ModelFactory for DerFactory {
         if scene.tissues().next().is_some() {
             return Err(Unsupported::new("der does not model tissue bodies"));
         }
-        let missing: Vec<&str> = scene
-            .required_capabilities()
-            .into_iter()
-            .filter(|c| !CAPABILITIES.contains(c))
-            .map(|c| c.name())
-            .collect();
-        if missing.is_empty() {
-            Ok(())
-        } else {
-            Err(Unsupported::new(format!("der does not model: {}", missing.join(", "))))
-        }
+        surgbench_core::model::check_capabilities(self.id(), self.capabilities(), scene)
     }
 
     fn build(&self, scene: &Scene, fidelity: &Fidelity) -> Result<Box<dyn Model>, BuildError> {

@@ -209,18 +209,7 @@ impl ModelFactory for MeshlessFactory {
         }
     }
     fn check(&self, scene: &Scene) -> Result<(), Unsupported> {
-        let missing: Vec<&str> = scene
-            .required_capabilities()
-            .into_iter()
-            .filter(|c| !CAPS.contains(c))
-            .map(|c| c.name())
-            .collect();
-        if !missing.is_empty() {
-            return Err(Unsupported::new(format!(
-                "meshless does not model: {}",
-                missing.join(", ")
-            )));
-        }
+        surgbench_core::model::check_capabilities(self.id(), self.capabilities(), scene)?;
         match scene.tissues().count() {
             1 => Ok(()),
             0 => Err(Unsupported::new("meshless needs a tissue body in the scene")),

@@ -121,19 +121,7 @@ impl ModelFactory for PbdRodFactory {
         f
     }
     fn check(&self, scene: &Scene) -> Result<(), Unsupported> {
-        let have = self.capabilities();
-        let missing: Vec<&str> = scene
-            .required_capabilities()
-            .into_iter()
-            .filter(|c| !have.contains(c))
-            .map(|c| c.name())
-            .collect();
-        if !missing.is_empty() {
-            return Err(Unsupported::new(format!(
-                "pbd-rod does not model: {}",
-                missing.join(", ")
-            )));
-        }
+        surgbench_core::model::check_capabilities(self.id(), self.capabilities(), scene)?;
         match scene.rods().count() {
             1 => Ok(()),
             0 => Err(Unsupported::new("pbd-rod needs a rod in the scene")),

@@ -135,19 +135,7 @@ impl ModelFactory for PbdTissueFactory {
         }
     }
     fn check(&self, scene: &Scene) -> Result<(), Unsupported> {
-        let have = self.capabilities();
-        let missing: Vec<&str> = scene
-            .required_capabilities()
-            .into_iter()
-            .filter(|c| !have.contains(c))
-            .map(|c| c.name())
-            .collect();
-        if !missing.is_empty() {
-            return Err(Unsupported::new(format!(
-                "pbd-tissue does not model: {}",
-                missing.join(", ")
-            )));
-        }
+        surgbench_core::model::check_capabilities(self.id(), self.capabilities(), scene)?;
         let tissues: Vec<&TissueBody> = scene.tissues().collect();
         match tissues.len() {
             1 => {}
