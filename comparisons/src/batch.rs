@@ -132,6 +132,7 @@ fn row_from_summary(mut row: ResultRow, v: &serde_json::Value) -> ResultRow {
     row.solver_iters_max = num(v, "solver_iters_max");
     row.peak_rss_mb = num(v, "peak_rss_mb");
     row.build_ms = num(v, "build_ms");
+    row.solve_wall_s = num(v, "solve_wall_s");
     row.stable = v.get("stable").and_then(|x| x.as_bool());
     row.watchdog = text(v, "watchdog");
     row.watchdog_t = num(v, "watchdog_t");

@@ -99,6 +99,8 @@ pub struct RunSummary {
     pub peak_rss_mb: Option<f64>,
     /// Model build time (ms).
     pub build_ms: Option<f64>,
+    /// Wall time of every step of the first repeat (s): time to solution.
+    pub solve_wall_s: Option<f64>,
     /// No watchdog tripped.
     pub stable: bool,
     /// First watchdog that tripped, with what it saw.
@@ -165,6 +167,7 @@ fn watchdog(obs: &Observation, run: &dyn ScenarioRun, e0: f64, opts: &RunOptions
 /// What became of one repeat.
 struct Repeat {
     steps: usize,
+    wall_s: f64,
     t: f64,
     times_ms: Vec<f64>,
     iters: Vec<u32>,
@@ -189,6 +192,7 @@ fn run_repeat(
     let e0 = first.energy.total();
     let mut rep = Repeat {
         steps: 0,
+        wall_s: 0.0,
         t: 0.0,
         times_ms: Vec::with_capacity(max_steps),
         iters: Vec::with_capacity(max_steps),
@@ -222,6 +226,7 @@ fn run_repeat(
         let start = Instant::now();
         let res = model.step(dt, &cmd);
         let ms = start.elapsed().as_secs_f64() * 1e3;
+        rep.wall_s += ms / 1e3;
         rep.steps = k + 1;
         rep.t = t;
         match res {
@@ -329,6 +334,7 @@ pub fn run_single(
     let rep = first.expect("at least one repeat");
     s.steps = rep.steps;
     s.sim_time_s = rep.t;
+    s.solve_wall_s = Some(rep.wall_s);
     s.end = rep.end.clone();
     if !times.is_empty() {
         let mut sorted = times.clone();

@@ -70,6 +70,10 @@ pub struct ResultRow {
     pub peak_rss_mb: Option<f64>,
     /// Model build time (ms).
     pub build_ms: Option<f64>,
+    /// Wall time of all steps of one run (s): time to solution for static
+    /// scenes, where per-step times of models with different `dt` do not
+    /// compare.
+    pub solve_wall_s: Option<f64>,
     /// Whether every stability watchdog stayed quiet.
     pub stable: Option<bool>,
     /// Name/message of the first watchdog that tripped (`""` if none).
@@ -113,7 +117,7 @@ pub struct RunInfo {
 }
 
 /// The fixed columns of `results.csv`, in file order; metric columns follow, sorted.
-pub const FIXED_COLUMNS: [&str; 28] = [
+pub const FIXED_COLUMNS: [&str; 29] = [
     "comparison",
     "scenario",
     "model",
@@ -137,6 +141,7 @@ pub const FIXED_COLUMNS: [&str; 28] = [
     "solver_iters_max",
     "peak_rss_mb",
     "build_ms",
+    "solve_wall_s",
     "stable",
     "watchdog",
     "watchdog_t",
@@ -178,12 +183,13 @@ fn cell(row: &mut ResultRow, i: usize) -> Cell<'_> {
         20 => Num(&mut row.solver_iters_max),
         21 => Num(&mut row.peak_rss_mb),
         22 => Num(&mut row.build_ms),
-        23 => Bool(&mut row.stable),
-        24 => Text(&mut row.watchdog),
-        25 => Num(&mut row.watchdog_t),
-        26 => Text(&mut row.primary_error),
-        27 => Text(&mut row.run_dir),
-        _ => unreachable!("FIXED_COLUMNS has 28 entries"),
+        23 => Num(&mut row.solve_wall_s),
+        24 => Bool(&mut row.stable),
+        25 => Text(&mut row.watchdog),
+        26 => Num(&mut row.watchdog_t),
+        27 => Text(&mut row.primary_error),
+        28 => Text(&mut row.run_dir),
+        _ => unreachable!("FIXED_COLUMNS has 29 entries"),
     }
 }
 
