@@ -36,3 +36,34 @@ pub use hash::BoxHash;
 pub use mesh::block_tet_mesh;
 pub use rod::{PbdRod, PbdRodFactory, RodSettings};
 pub use tissue::{PbdTissue, PbdTissueFactory, TissueSettings, project_volume, tet_volume, tet_volume_gradients};
+
+/// Range checks of the solver knobs both PBD models share: `dt` (s),
+/// `iterations`, `substeps` (an integer count carried as `f64` fidelity
+/// extra) and velocity `damping` (1/s).
+pub(crate) fn check_solver_knobs(
+    dt: f64,
+    iterations: usize,
+    substeps: f64,
+    damping: f64,
+) -> Result<(), surgbench_core::BuildError> {
+    use surgbench_core::BuildError;
+    if !(dt > 0.0 && dt.is_finite()) {
+        return Err(BuildError::bad("dt", format!("must be > 0 s, got {dt}")));
+    }
+    if iterations == 0 || iterations > 1_000_000 {
+        return Err(BuildError::bad(
+            "iterations",
+            format!("must be in 1..=1e6, got {iterations}"),
+        ));
+    }
+    if !(substeps >= 1.0 && substeps.fract() == 0.0 && substeps <= 1e6) {
+        return Err(BuildError::bad(
+            "substeps",
+            format!("must be an integer in 1..=1e6, got {substeps}"),
+        ));
+    }
+    if !(damping >= 0.0 && damping.is_finite()) {
+        return Err(BuildError::bad("damping", format!("must be >= 0 1/s, got {damping}")));
+    }
+    Ok(())
+}

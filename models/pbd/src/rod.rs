@@ -168,24 +168,7 @@ impl RodSettings {
                 format!("must be in 1..=100000, got {segments}"),
             ));
         }
-        if !(dt > 0.0 && dt.is_finite()) {
-            return Err(BuildError::bad("dt", format!("must be > 0 s, got {dt}")));
-        }
-        if iterations == 0 || iterations > 1_000_000 {
-            return Err(BuildError::bad(
-                "iterations",
-                format!("must be in 1..=1e6, got {iterations}"),
-            ));
-        }
-        if !(substeps >= 1.0 && substeps.fract() == 0.0 && substeps <= 1e6) {
-            return Err(BuildError::bad(
-                "substeps",
-                format!("must be an integer in 1..=1e6, got {substeps}"),
-            ));
-        }
-        if !(damping >= 0.0 && damping.is_finite()) {
-            return Err(BuildError::bad("damping", format!("must be >= 0 1/s, got {damping}")));
-        }
+        crate::check_solver_knobs(dt, iterations, substeps, damping)?;
         Ok(Self {
             segments,
             dt,

@@ -188,24 +188,7 @@ impl TissueSettings {
         let damping = f.extra("damping", 0.0);
         let hash_box = f.extra("hash_box", 0.0);
         let hash_span = f.extra("hash_span", hash_box / 3.0);
-        if !(dt > 0.0 && dt.is_finite()) {
-            return Err(BuildError::bad("dt", format!("must be > 0 s, got {dt}")));
-        }
-        if iterations == 0 || iterations > 1_000_000 {
-            return Err(BuildError::bad(
-                "iterations",
-                format!("must be in 1..=1e6, got {iterations}"),
-            ));
-        }
-        if !(substeps >= 1.0 && substeps.fract() == 0.0 && substeps <= 1e6) {
-            return Err(BuildError::bad(
-                "substeps",
-                format!("must be an integer in 1..=1e6, got {substeps}"),
-            ));
-        }
-        if !(damping >= 0.0 && damping.is_finite()) {
-            return Err(BuildError::bad("damping", format!("must be >= 0 1/s, got {damping}")));
-        }
+        crate::check_solver_knobs(dt, iterations, substeps, damping)?;
         if !(hash_box >= 0.0 && hash_box.is_finite()) {
             return Err(BuildError::bad("hash_box", format!("must be >= 0 m, got {hash_box}")));
         }
