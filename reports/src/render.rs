@@ -299,6 +299,28 @@ fn pareto_figure(g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figure, S
             .push("No speed/error plot: no row names a primary error metric.".into());
         return None;
     }
+    // Static scenes (every ok run ends settled or at its time limit): models
+    // take different dt and step counts to the same equilibrium, so the fair
+    // cost is the wall time to the solution, not the time per step.
+    let ok: Vec<&ResultRow> = g.rows.iter().copied().filter(|r| r.status == "ok").collect();
+    // (Older results.csv files have no solve_wall_s: they keep ms/step.)
+    let is_static = !ok.is_empty()
+        && ok
+            .iter()
+            .all(|r| (r.end == "settled" || r.end == "time-limit") && r.solve_wall_s.is_some());
+    let (cost, cost_name, cost_axis) = if is_static {
+        (
+            (|r: &ResultRow| r.solve_wall_s) as fn(&ResultRow) -> Option<f64>,
+            "time to solution (s)",
+            "wall time to solution [s] (log)",
+        )
+    } else {
+        (
+            (|r: &ResultRow| r.ms_per_step_median) as fn(&ResultRow) -> Option<f64>,
+            "ms/step",
+            "median wall time per step [ms] (log)",
+        )
+    };
     let mut series = Vec::new();
     let mut legend = Vec::new();
     let mut missing = Vec::new();
@@ -306,13 +328,13 @@ fn pareto_figure(g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figure, S
     for model in &g.models {
         let mut pts = Vec::new();
         for r in g.model_rows(model).into_iter().filter(|r| r.status == "ok") {
-            match (r.ms_per_step_median, g.err(r)) {
+            match (cost(r), g.err(r)) {
                 (Some(t), Some(e)) => {
                     if usable(Some(t)).is_some() && usable(Some(e)).is_some() {
                         pts.push((t, e));
                     } else {
                         nonpos.push(format!(
-                            "{} (ms/step = {}, {} = {})",
+                            "{} ({cost_name} = {}, {} = {})",
                             run_label(r),
                             fmt_sig(t, 3),
                             g.metric,
@@ -324,9 +346,9 @@ fn pareto_figure(g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figure, S
                     "{} (no {})",
                     run_label(r),
                     if t.is_none() && e.is_none() {
-                        format!("ms/step and no {}", g.metric)
+                        format!("{cost_name} and no {}", g.metric)
                     } else if t.is_none() {
-                        "ms/step".to_string()
+                        cost_name.to_string()
                     } else {
                         g.metric.clone()
                     }
@@ -363,7 +385,7 @@ fn pareto_figure(g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figure, S
     }
     if series.is_empty() {
         sec.notes.push(format!(
-            "No speed/error plot: no ok run has both a positive ms/step and a positive {}.",
+            "No speed/error plot: no ok run has both a positive {cost_name} and a positive {}.",
             g.metric
         ));
         return None;
@@ -380,14 +402,20 @@ fn pareto_figure(g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figure, S
         title: format!("{}: speed vs {}", g.title, g.metric),
         panels: vec![Panel {
             title: String::new(),
-            x: Axis::log("median wall time per step [ms] (log)"),
+            x: Axis::log(cost_axis),
             y: Axis::log(format!("{} (log)", g.metric_label())),
             series,
         }],
         legend,
         size: PLOT_SIZE,
     };
-    let alt = format!("{}: speed (ms/step) vs {}, one point per ok run", g.title, g.metric);
+    let alt = format!("{}: speed ({cost_name}) vs {}, one point per ok run", g.title, g.metric);
+    if is_static {
+        sec.notes.push(
+            "Static scene: the speed axis is the wall time to the solution (all steps to settling), since models reach the same equilibrium with different step sizes and counts."
+                .into(),
+        );
+    }
     Some((fig, alt))
 }
 

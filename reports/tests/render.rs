@@ -224,3 +224,33 @@ fn long_names_and_colliding_stems_render() {
         }
     }
 }
+
+/// Static scenes compare models by wall time to the solution when every ok
+/// run has one (models settle with different dt and step counts); rows from
+/// older results.csv files without it keep ms/step.
+#[test]
+fn static_speed_axis_is_time_to_solution() {
+    let axis_of = |with_solve: bool| {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
+        let mut rows = common::rows();
+        for r in rows.iter_mut() {
+            r.solve_wall_s = with_solve.then(|| r.steps.unwrap_or(1.0) * r.ms_per_step_median.unwrap_or(1.0) / 1e3);
+        }
+        write_results_csv(&dir.join("results.csv"), &rows).unwrap();
+        write_run_info(&dir.join("summary.json"), &common::info()).unwrap();
+        common::write_series(dir, &rows);
+        render(dir, &rows, &common::info()).unwrap();
+        read(&dir.join("plots/cantilever-gravity-pareto.svg"))
+    };
+    let with = axis_of(true);
+    assert!(
+        with.contains("wall time to solution"),
+        "static group with solve_wall_s should plot time to solution"
+    );
+    let without = axis_of(false);
+    assert!(
+        without.contains("median wall time per step"),
+        "rows without solve_wall_s should keep ms/step"
+    );
+}
