@@ -140,6 +140,9 @@ enum Cmd {
         /// Write what the device rendered (force, torque) to this CSV (with --replay).
         #[arg(long)]
         record: Option<PathBuf>,
+        /// Also write the measured numbers as a one-row `haptic.csv` to this file.
+        #[arg(long)]
+        csv: Option<PathBuf>,
     },
     /// (internal) The workload the gate counts under valgrind.
     #[command(hide = true)]
@@ -451,6 +454,7 @@ fn main() -> ExitCode {
             duration,
             replay,
             record,
+            csv,
         } => (|| {
             if !(rate > 0.0 && rate.is_finite() && duration > 0.0 && duration.is_finite()) {
                 return Err(Failure::Usage(format!(
@@ -494,6 +498,18 @@ fn main() -> ExitCode {
             };
             say!("{model} on {scenario} [{full}] at {rate} Hz for {duration} s");
             say!("{report}");
+            if let Some(path) = &csv {
+                let row = report.row(&model, &scenario, &full.to_string());
+                let tmp = path.with_extension("csv.tmp");
+                surgbench_reports::write_haptic_csv(&tmp, &[row])
+                    .and_then(|_| {
+                        std::fs::rename(&tmp, path).map_err(|e| surgbench_reports::ReportError::Io {
+                            path: path.clone(),
+                            source: e,
+                        })
+                    })
+                    .map_err(|e| Failure::Runtime(e.to_string()))?;
+            }
             Ok(())
         })(),
         Cmd::GateWorkload {

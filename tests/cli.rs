@@ -253,3 +253,42 @@ fn a_failed_run_leaves_the_earlier_report_intact() {
         .collect();
     assert!(leftovers.is_empty(), "temporary folders left behind: {leftovers:?}");
 }
+
+/// `[[haptic]]` entries run after the comparison's runs, each in its own
+/// process: an ok loop, a model that panics inside the loop, and a model that
+/// cannot run the scene all appear in `haptic.csv` and the report's table.
+#[test]
+fn haptic_loops_land_in_the_report() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cmp = tmp.path().join("haptic.toml");
+    std::fs::write(
+        &cmp,
+        "name = \"h\"\nmodels = [\"chainmail\"]\n[[scenario]]\nid = \"cantilever-gravity\"\nquick_sweep = { segments = [10] }\n\
+         [[haptic]]\nmodel = \"chainmail\"\nscenario = \"arch-insertion\"\nfidelity = { segments = 20 }\nquick_duration_s = 0.2\n\
+         [[haptic]]\nmodel = \"faulty-panic\"\nscenario = \"cantilever-gravity\"\nquick_duration_s = 0.2\n\
+         [[haptic]]\nmodel = \"meshless\"\nscenario = \"capstan\"\nquick_duration_s = 0.2\n",
+    )
+    .unwrap();
+    let out = tmp.path().join("report");
+    let o = surgbench(&[
+        "run",
+        cmp.to_str().unwrap(),
+        "--quick",
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rows = surgbench_reports::read_haptic_csv(&out.join("haptic.csv")).unwrap();
+    assert_eq!(rows.len(), 3, "{rows:?}");
+    assert_eq!(rows[0].status, "ok", "{:?}", rows[0]);
+    assert_eq!(rows[0].ticks, Some(200.0), "0.2 s at 1 kHz: {:?}", rows[0]);
+    assert!(
+        rows[1].status == "failed" && rows[1].reason.contains("panicked on purpose"),
+        "{:?}",
+        rows[1]
+    );
+    assert_eq!(rows[2].status, "unsupported", "{:?}", rows[2]);
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("## Haptic loop") && md.contains("of 200 ("), "{md}");
+}

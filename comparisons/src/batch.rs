@@ -4,13 +4,13 @@
 //! on. Results are written to a temporary folder and renamed into place at
 //! the end: a failed or interrupted run leaves earlier reports intact.
 
-use crate::comparison::{Comparison, Job};
+use crate::comparison::{Comparison, HapticJob, Job};
 use crate::registry;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
-use surgbench_reports::{ResultRow, RunInfo};
+use surgbench_reports::{HapticRow, ResultRow, RunInfo};
 
 /// How to run a comparison.
 #[derive(Debug, Clone)]
@@ -197,57 +197,20 @@ fn run_job(c: &Comparison, job: &Job, runs: &Path, opts: &BatchOptions, repeats:
         let _ = std::fs::create_dir_all(p);
     }
     let err_path = dir.with_extension("stderr.txt");
-    let mut cmd = Command::new(&opts.exe);
-    cmd.arg("run-one")
-        .arg("--scenario")
-        .arg(&job.scenario)
-        .arg("--model")
-        .arg(&job.model)
-        .arg("--out")
+    let mut cmd = child_command(opts, "run-one", &job.model, &job.scenario, &job.params, &job.fidelity);
+    cmd.arg("--out")
         .arg(&dir)
         .arg("--repeats")
         .arg(repeats.to_string())
         .arg("--quiet");
-    for (k, v) in &job.params {
-        cmd.arg("--param").arg(format!("{k}={v}"));
-    }
-    for (k, v) in job.fidelity.pairs() {
-        cmd.arg("--fidelity").arg(format!("{k}={v}"));
-    }
-    cmd.env("RAYON_NUM_THREADS", opts.threads.to_string())
-        .env("RUST_BACKTRACE", "0")
-        .stdin(Stdio::null())
-        .stdout(Stdio::null());
-    match std::fs::File::create(&err_path) {
-        Ok(f) => {
-            cmd.stderr(f);
-        }
-        Err(_) => {
-            cmd.stderr(Stdio::null());
-        }
-    }
-    let start = Instant::now();
-    let mut child = match cmd.spawn() {
-        Ok(c) => c,
+    let (status, elapsed) = match spawn_with_limit(cmd, &err_path, timeout) {
+        Ok(x) => x,
         Err(e) => {
             row.status = "failed".into();
             row.reason = format!("could not start {}: {e}", opts.exe.display());
             return row;
         }
     };
-    let status = loop {
-        match child.try_wait() {
-            Ok(Some(s)) => break Some(s),
-            Ok(None) if start.elapsed().as_secs_f64() > timeout => {
-                let _ = child.kill();
-                let _ = child.wait();
-                break None;
-            }
-            Ok(None) => std::thread::sleep(Duration::from_millis(5)),
-            Err(_) => break None,
-        }
-    };
-    let elapsed = start.elapsed().as_secs_f64();
     match status {
         None => {
             row.status = "timeout".into();
@@ -268,18 +231,141 @@ fn run_job(c: &Comparison, job: &Job, runs: &Path, opts: &BatchOptions, repeats:
         },
         Some(s) => {
             row.status = "failed".into();
-            let code = match (s.code(), std::os::unix::process::ExitStatusExt::signal(&s)) {
-                (Some(c), _) => format!("exit code {c}"),
-                (None, Some(6)) => "aborted (SIGABRT)".into(),
-                (None, Some(sig)) => format!("killed by signal {sig}"),
-                (None, None) => "killed".into(),
-            };
-            row.reason = format!("{code} after {elapsed:.2} s: {}", stderr_tail(&err_path));
+            row.reason = format!(
+                "{} after {elapsed:.2} s: {}",
+                exit_description(&s),
+                stderr_tail(&err_path)
+            );
         }
     }
     if row.status == "ok" || row.status == "unstable" || row.status == "unsupported" {
         let _ = std::fs::remove_file(&err_path);
     }
+    row
+}
+
+/// `surgbench <sub> --model M --scenario S --param .. --fidelity ..` with the
+/// batch's thread count: what every child process of a batch starts from.
+fn child_command(
+    opts: &BatchOptions,
+    sub: &str,
+    model: &str,
+    scenario: &str,
+    params: &[(String, f64)],
+    fidelity: &surgbench_core::Fidelity,
+) -> Command {
+    let mut cmd = Command::new(&opts.exe);
+    cmd.arg(sub).arg("--model").arg(model).arg("--scenario").arg(scenario);
+    for (k, v) in params {
+        cmd.arg("--param").arg(format!("{k}={v}"));
+    }
+    for (k, v) in fidelity.pairs() {
+        cmd.arg("--fidelity").arg(format!("{k}={v}"));
+    }
+    cmd.env("RAYON_NUM_THREADS", opts.threads.to_string());
+    cmd
+}
+
+/// Spawn `cmd` with stderr to `err_path`, wait up to `timeout` s; `None`
+/// means it was killed at the limit (or could not be waited on).
+fn spawn_with_limit(
+    mut cmd: Command,
+    err_path: &Path,
+    timeout: f64,
+) -> Result<(Option<std::process::ExitStatus>, f64), std::io::Error> {
+    cmd.env("RUST_BACKTRACE", "0")
+        .stdin(Stdio::null())
+        .stdout(Stdio::null());
+    match std::fs::File::create(err_path) {
+        Ok(f) => cmd.stderr(f),
+        Err(_) => cmd.stderr(Stdio::null()),
+    };
+    let start = Instant::now();
+    let mut child = cmd.spawn()?;
+    let status = loop {
+        match child.try_wait() {
+            Ok(Some(s)) => break Some(s),
+            Ok(None) if start.elapsed().as_secs_f64() > timeout => {
+                let _ = child.kill();
+                let _ = child.wait();
+                break None;
+            }
+            Ok(None) => std::thread::sleep(Duration::from_millis(5)),
+            Err(_) => break None,
+        }
+    };
+    Ok((status, start.elapsed().as_secs_f64()))
+}
+
+/// How a child that did not succeed ended, for the reason column.
+fn exit_description(s: &std::process::ExitStatus) -> String {
+    match (s.code(), std::os::unix::process::ExitStatusExt::signal(s)) {
+        (Some(c), _) => format!("exit code {c}"),
+        (None, Some(6)) => "aborted (SIGABRT)".into(),
+        (None, Some(sig)) => format!("killed by signal {sig}"),
+        (None, None) => "killed".into(),
+    }
+}
+
+/// Run one haptic loop in a child process (`surgbench haptic ... --csv`):
+/// a panicking or hanging model becomes a `failed` / `timeout` row.
+fn run_haptic_job(job: &HapticJob, dir: &Path, opts: &BatchOptions) -> HapticRow {
+    let mut row = HapticRow {
+        model: job.model.clone(),
+        scenario: job.scenario.clone(),
+        fidelity: job.fidelity.to_string(),
+        rate_hz: job.rate_hz,
+        duration_s: job.duration_s,
+        ..Default::default()
+    };
+    if let Some(reason) = &job.unsupported {
+        row.status = "unsupported".into();
+        row.reason = reason.clone();
+        return row;
+    }
+    let stem = slug(&format!("{}-{}-{}", job.model, job.scenario, job.fidelity));
+    let csv = dir.join(format!("{stem}.csv"));
+    let err_path = dir.join(format!("{stem}.stderr.txt"));
+    let mut cmd = child_command(opts, "haptic", &job.model, &job.scenario, &job.params, &job.fidelity);
+    cmd.arg("--rate")
+        .arg(job.rate_hz.to_string())
+        .arg("--duration")
+        .arg(job.duration_s.to_string())
+        .arg("--csv")
+        .arg(&csv);
+    // Model build and the loop's own duration, with room for a slow machine.
+    let timeout = 2.0 * job.duration_s + 120.0;
+    match spawn_with_limit(cmd, &err_path, timeout) {
+        Err(e) => {
+            row.status = "failed".into();
+            row.reason = format!("could not start {}: {e}", opts.exe.display());
+        }
+        Ok((None, elapsed)) => {
+            row.status = "timeout".into();
+            row.reason = format!("killed after {elapsed:.1} s wall-clock limit");
+        }
+        Ok((Some(s), _)) if s.success() => match surgbench_reports::read_haptic_csv(&csv) {
+            Ok(mut r) if r.len() == 1 => row = r.remove(0),
+            Ok(r) => {
+                row.status = "failed".into();
+                row.reason = format!("haptic loop wrote {} rows, expected 1", r.len());
+            }
+            Err(e) => {
+                row.status = "failed".into();
+                row.reason = format!("haptic loop finished but its CSV is unreadable: {e}");
+            }
+        },
+        Ok((Some(s), elapsed)) => {
+            row.status = "failed".into();
+            row.reason = format!(
+                "{} after {elapsed:.2} s: {}",
+                exit_description(&s),
+                stderr_tail(&err_path)
+            );
+        }
+    }
+    let _ = std::fs::remove_file(&err_path);
+    let _ = std::fs::remove_file(&csv);
     row
 }
 
@@ -414,6 +500,7 @@ pub fn temp_sibling(out: &Path) -> std::io::Result<PathBuf> {
 pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultRow>, BatchError> {
     let started = Instant::now();
     let jobs = c.jobs(opts.quick, opts.models.as_deref())?;
+    let haptic_jobs = c.haptic_jobs(opts.quick, opts.models.as_deref())?;
     if jobs.is_empty() {
         return Err(crate::UsageError("the comparison selects no runs (no models match?)".into()).into());
     }
@@ -430,7 +517,7 @@ pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultR
         let bar = if opts.quiet {
             indicatif::ProgressBar::hidden()
         } else {
-            let b = indicatif::ProgressBar::new(jobs.len() as u64);
+            let b = indicatif::ProgressBar::new((jobs.len() + haptic_jobs.len()) as u64);
             b.set_style(
                 indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} {msg}")
                     .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
@@ -442,6 +529,18 @@ pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultR
             bar.set_message(format!("{} / {} / {}", job.scenario, job.model, job.fidelity));
             rows.push(run_job(c, job, &runs, opts, repeats, timeout));
             bar.inc(1);
+        }
+        // Haptic loops run alone, after every other run, so they do not
+        // compete with the batch for the cores.
+        let mut haptic = Vec::with_capacity(haptic_jobs.len());
+        for job in &haptic_jobs {
+            bar.set_message(format!("haptic {} / {} at {} Hz", job.scenario, job.model, job.rate_hz));
+            haptic.push(run_haptic_job(job, &runs, opts));
+            bar.inc(1);
+        }
+        if !haptic.is_empty() {
+            surgbench_reports::write_haptic_csv(&tmp.join("haptic.csv"), &haptic)
+                .map_err(|e| BatchError::Io(e.to_string()))?;
         }
         bar.finish_and_clear();
         let mut info = run_info(&c.name, opts);

@@ -68,6 +68,61 @@ pub struct ScenarioEntry {
     pub models: BTreeMap<String, ModelEntry>,
 }
 
+fn default_rate() -> f64 {
+    1000.0
+}
+fn default_duration() -> f64 {
+    10.0
+}
+fn default_quick_duration() -> f64 {
+    1.0
+}
+
+/// A fixed-rate haptic loop to run after the comparison's runs
+/// (`[[haptic]]`): the report's "can this model drive a device" table.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HapticEntry {
+    /// Model id.
+    pub model: String,
+    /// Scenario id (its control timeline drives the scripted device).
+    pub scenario: String,
+    /// Parameter overrides.
+    #[serde(default)]
+    pub params: BTreeMap<String, f64>,
+    /// Fidelity knobs.
+    #[serde(default)]
+    pub fidelity: BTreeMap<String, f64>,
+    /// Loop rate (Hz), default 1000.
+    #[serde(default = "default_rate")]
+    pub rate_hz: f64,
+    /// Wall-clock duration (s), default 10.
+    #[serde(default = "default_duration")]
+    pub duration_s: f64,
+    /// Duration under `--quick` (s), default 1.
+    #[serde(default = "default_quick_duration")]
+    pub quick_duration_s: f64,
+}
+
+/// One haptic loop to run, validated.
+#[derive(Debug, Clone)]
+pub struct HapticJob {
+    /// Model id.
+    pub model: String,
+    /// Scenario id.
+    pub scenario: String,
+    /// Parameter overrides.
+    pub params: Vec<(String, f64)>,
+    /// Requested fidelity.
+    pub fidelity: Fidelity,
+    /// Rate (Hz).
+    pub rate_hz: f64,
+    /// Duration (s).
+    pub duration_s: f64,
+    /// Why the model cannot run the scene, if it cannot.
+    pub unsupported: Option<String>,
+}
+
 /// A comparison file.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -85,6 +140,9 @@ pub struct Comparison {
     pub timeout_s: Option<f64>,
     /// Scenarios.
     pub scenario: Vec<ScenarioEntry>,
+    /// Haptic loops (optional).
+    #[serde(default)]
+    pub haptic: Vec<HapticEntry>,
 }
 
 /// One run to do.
@@ -152,7 +210,52 @@ impl Comparison {
         {
             return Err(UsageError(format!("timeout_s must be > 0, got {t}")));
         }
+        for h in &c.haptic {
+            for (name, v) in [
+                ("rate_hz", h.rate_hz),
+                ("duration_s", h.duration_s),
+                ("quick_duration_s", h.quick_duration_s),
+            ] {
+                if !(v > 0.0 && v.is_finite()) {
+                    return Err(UsageError(format!(
+                        "[[haptic]] {} on {}: {name} must be > 0, got {v}",
+                        h.model, h.scenario
+                    )));
+                }
+            }
+        }
         Ok(c)
+    }
+
+    /// The haptic loops to run, validated like the runs (scenario, model,
+    /// parameters, fidelity knobs) before anything runs; `only` restricts
+    /// the models.
+    pub fn haptic_jobs(&self, quick: bool, only: Option<&[String]>) -> Result<Vec<HapticJob>, UsageError> {
+        let mut jobs = Vec::new();
+        for h in &self.haptic {
+            let f = registry::model(&h.model)?;
+            if only.is_some_and(|o| !o.iter().any(|m| m == &h.model)) {
+                continue;
+            }
+            let sc = registry::scenario(&h.scenario)?;
+            let overrides: Vec<(String, f64)> = h.params.iter().map(|(k, v)| (k.clone(), *v)).collect();
+            let params = Params::resolve(sc.id(), sc.params(), &overrides)?;
+            let fidelity = expand(&h.fidelity.iter().map(|(k, v)| (k.clone(), vec![*v])).collect())?.remove(0);
+            fidelity
+                .check_extras(f.fidelity_keys())
+                .map_err(|e| UsageError(format!("[[haptic]] model `{}`: {}", h.model, e.0)))?;
+            let inst = sc.instantiate_at(&params, &fidelity)?;
+            jobs.push(HapticJob {
+                model: h.model.clone(),
+                scenario: h.scenario.clone(),
+                params: overrides,
+                fidelity,
+                rate_hz: h.rate_hz,
+                duration_s: if quick { h.quick_duration_s } else { h.duration_s },
+                unsupported: f.check(inst.scene()).err().map(|u| u.reason),
+            });
+        }
+        Ok(jobs)
     }
 
     /// Expand into jobs, validating every scenario, parameter, model and
@@ -266,6 +369,33 @@ mod tests {
         )
         .unwrap();
         assert!(c.jobs(false, None).unwrap_err().0.contains("`length`"));
+    }
+
+    #[test]
+    fn haptic_entries_are_validated() {
+        let base = "name = \"x\"\nmodels = \"all\"\n[[scenario]]\nid = \"cantilever-gravity\"\n";
+        let e = Comparison::parse(&format!(
+            "{base}[[haptic]]\nmodel = \"der\"\nscenario = \"arch-insertion\"\nrate_hz = 0\n"
+        ))
+        .unwrap_err();
+        assert!(e.0.contains("rate_hz"), "{e}");
+        let c = Comparison::parse(&format!(
+            "{base}[[haptic]]\nmodel = \"nope\"\nscenario = \"arch-insertion\"\n"
+        ))
+        .unwrap();
+        assert!(c.haptic_jobs(false, None).unwrap_err().0.contains("nope"));
+        let c = Comparison::parse(&format!(
+            "{base}[[haptic]]\nmodel = \"der\"\nscenario = \"arch-insertion\"\nduration_s = 3\n"
+        ))
+        .unwrap();
+        let j = c.haptic_jobs(true, None).unwrap();
+        assert_eq!((j.len(), j[0].duration_s, j[0].rate_hz), (1, 1.0, 1000.0));
+        assert_eq!(c.haptic_jobs(false, None).unwrap()[0].duration_s, 3.0);
+        assert!(
+            c.haptic_jobs(false, Some(&["chainmail".to_string()]))
+                .unwrap()
+                .is_empty()
+        );
     }
 
     #[test]

@@ -60,6 +60,27 @@ pub struct HapticReport {
 }
 
 impl HapticReport {
+    /// This loop as a row of the report's `haptic.csv`; `fidelity` is the
+    /// fidelity the model ran at.
+    pub fn row(&self, model: &str, scenario: &str, fidelity: &str) -> surgbench_reports::HapticRow {
+        surgbench_reports::HapticRow {
+            model: model.into(),
+            scenario: scenario.into(),
+            fidelity: fidelity.into(),
+            status: if self.stopped.is_some() { "stopped" } else { "ok" }.into(),
+            reason: self.stopped.clone().unwrap_or_default(),
+            rate_hz: self.rate_hz,
+            duration_s: self.duration_s,
+            ticks: Some(self.ticks as f64),
+            substeps: Some(self.substeps as f64),
+            deadline_misses: Some(self.deadline_misses as f64),
+            latency_p50_ms: Some(self.latency_p50_ms),
+            latency_p99_ms: Some(self.latency_p99_ms),
+            latency_max_ms: Some(self.latency_max_ms),
+            jitter_max_ms: Some(self.jitter_max_ms),
+        }
+    }
+
     /// Fraction of ticks that missed their deadline.
     pub fn miss_ratio(&self) -> f64 {
         if self.ticks == 0 {

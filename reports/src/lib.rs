@@ -30,6 +30,7 @@ mod doc;
 mod error;
 mod figure;
 mod format;
+mod haptic;
 mod render;
 
 pub use analysis::{fit_order, pareto_front};
@@ -39,4 +40,5 @@ pub use data::{
 };
 pub use error::ReportError;
 pub use format::{fmt_sig, fmt_tick, log_ticks};
+pub use haptic::{HAPTIC_COLUMNS, HapticRow, read_haptic_csv, write_haptic_csv};
 pub use render::{render, render_dir};

@@ -51,7 +51,12 @@ pub fn render(dir: &Path, rows: &[ResultRow], info: &RunInfo) -> Result<Vec<Path
         sections.push(sec);
     }
 
-    let blocks = page(info, rows, &groups, &sections, &styles);
+    let mut blocks = page(info, rows, &groups, &sections, &styles);
+    // The haptic-loop table, when the comparison ran one (`haptic.csv`).
+    let haptic = dir.join("haptic.csv");
+    if haptic.exists() {
+        blocks.extend(crate::haptic::section(&crate::read_haptic_csv(&haptic)?));
+    }
     let title = format!("surgbench report: {}", or_unknown(&info.comparison));
     let md = dir.join("report.md");
     write_atomic(&md, &to_markdown(&blocks))?;
