@@ -143,6 +143,24 @@ fn same_inputs_give_bit_identical_results() {
     }
 }
 
+/// Model x scenario pairs known to break rigid-motion invariance, with what
+/// was measured; each is open (noted on its issue) and checked as a strict
+/// expected failure. `capstan` (since its clamp got a straight long enough
+/// for its travel, so the wire starts 40+ mm long with its dead tip load
+/// across the tube): two unrelated models differ under a rotation of the
+/// scene and not under a translation, which points at the scene (a
+/// symmetric start that rounding breaks differently in each frame) rather
+/// than at either model; not yet shown.
+const KNOWN_FRAME_DEPENDENT: &[(&str, &str, &str)] = &[
+    (
+        "der",
+        "capstan",
+        "4e-5 m after 20 steps at 8 segments; rotation only (translation exact); Newton stalls at its \
+         iteration limit in the rotated frame from the first step",
+    ),
+    ("pbd-rod", "capstan", "6e-4 m after 20 steps at 8 segments"),
+];
+
 #[test]
 fn rigid_motion_of_the_scene_moves_the_answer_rigidly() {
     let iso = Isometry3::from_parts(
@@ -193,6 +211,23 @@ fn rigid_motion_of_the_scene_moves_the_answer_rigidly() {
             // Only rounding differs between the two runs; iterative solvers
             // stop at their tolerance (<= 1e-10 relative by default), so the
             // answers agree to well under 1e-8 of the scene size.
+            let known = KNOWN_FRAME_DEPENDENT
+                .iter()
+                .find(|(m, s, _)| *m == r.factory.id() && *s == sid);
+            if let Some((_, _, why)) = known {
+                // Strict expected failure: when the defect is fixed this
+                // fails, and the entry must go.
+                assert!(
+                    worst > 1e-8 * scale,
+                    "{} on {sid} is now frame-independent (max {worst:.3e} m): remove it from KNOWN_FRAME_DEPENDENT",
+                    r.factory.id()
+                );
+                eprintln!(
+                    "known defect: {} on {sid} differs by {worst:.3e} m between frames ({why})",
+                    r.factory.id()
+                );
+                continue;
+            }
             assert!(
                 worst <= 1e-8 * scale,
                 "{} on {sid}: rigidly moved scene gives a different answer (max {worst:.3e} m, scale {scale} m)",

@@ -391,6 +391,7 @@ pub fn run_single(
     let mut times = Vec::new();
     let mut iters = Vec::new();
     let mut first: Option<Repeat> = None;
+    let mut diagnostics = BTreeMap::new();
     for r in 0..opts.repeats.max(1) {
         let t0 = Instant::now();
         let mut model = match factory.build(scene, &fid) {
@@ -411,6 +412,9 @@ pub fn run_single(
             s.build_ms = Some(t0.elapsed().as_secs_f64() * 1e3);
         }
         let rep = run_repeat(model.as_mut(), run, scenario.primary_error(), opts, r == 0);
+        if r == 0 {
+            diagnostics = model.diagnostics();
+        }
         times.extend_from_slice(&rep.times_ms);
         iters.extend(rep.iters.iter().map(|&i| i as f64));
         match &first {
@@ -457,6 +461,13 @@ pub fn run_single(
     }
     if rep.last.is_finite() {
         s.errors = run.score(&rep.last);
+        // The model's own diagnostics, prefixed so they never shadow a
+        // scenario metric.
+        for (k, v) in diagnostics {
+            if v.is_finite() {
+                s.errors.insert(format!("diag_{k}"), v);
+            }
+        }
         s.tip = rep.last.rods.first().map(|r| {
             let t = r.tip();
             [t.x, t.y, t.z]

@@ -217,7 +217,9 @@ fn bad_parameters_are_usage_errors() {
         ("capstan", &[("tube_radius", 0.4e-3)], "does not fit"),
         ("branch-selection", &[("target", 0.5)], "0 or 1"),
         ("branch-selection", &[("j_curvature", 1000.0)], "start in the wall"),
-        ("arch-insertion", &[("initial_length", 0.07)], "does not fit"),
+        ("arch-insertion", &[("initial_length", 0.21)], "does not fit"),
+        ("arch-insertion", &[("insertion_speed", 0.03)], "into the wall"),
+        ("coronary-tortuous", &[("push_speed", 0.006)], "into the wall"),
         ("arch-insertion", &[("friction_dynamic", 0.5)], "must not exceed"),
         ("coronary-tortuous", &[("push_speed", 0.05)], "past the end"),
         ("stick-slip-threshold", &[("pull_time", 1e-3)], "elastic slack"),
@@ -231,6 +233,9 @@ fn bad_parameters_are_usage_errors() {
         assert!(e.0.contains(msg), "{id} {o:?}: `{e}` lacks `{msg}`");
     }
 }
+
+/// Default initial free length of the `arch-insertion` wire (m).
+const L0: f64 = 0.2;
 
 /// The aortic arch trunk from the clamp: s -> trunk.point_at(ENTRY_S + s).
 fn arch_follower(l0: f64, hand: Vec3) -> TestFactory {
@@ -254,12 +259,12 @@ fn arch_follower(l0: f64, hand: Vec3) -> TestFactory {
 fn arch_insertion_scores_reach_time_force_and_penetration() {
     let s = scenario("arch-insertion");
     let p = params(s, &[]);
-    let sum = run(s, &p, &arch_follower(0.05, Vec3::new(0.0, 0.0, -0.1)));
+    let sum = run(s, &p, &arch_follower(L0, Vec3::new(0.0, 0.0, -0.1)));
     assert_eq!(sum.status, "ok", "{}", sum.reason);
     let e = &sum.errors;
     // Tip on the trunk at ENTRY_S + L0 + v t: reaches the plane 10 mm into
-    // the ascending aorta at t* = (60 + 35 pi + 10 - 5 - 50) mm / (20 mm/s).
-    let t_star = (0.06 + PI * 0.035 + 0.01 - ENTRY_S - 0.05) / 0.02;
+    // the ascending aorta at t* = (210 + 35 pi + 10 - 5 - 200) mm / (20 mm/s).
+    let t_star = (surgbench_core::vessel::ARCH_DESCENDING + PI * 0.035 + 0.01 - ENTRY_S - L0) / 0.02;
     // Resolution: the runner samples 400 times over 7.5 s (18.75 ms).
     let t = e["time_to_reach_s"];
     assert!(
@@ -276,7 +281,7 @@ fn arch_insertion_scores_reach_time_force_and_penetration() {
     assert!((e["hand_force_mean_n"] - 0.1).abs() < 1e-12 && (e["hand_force_max_n"] - 0.1).abs() < 1e-15);
     assert_eq!(e["reference_available"], 0.0, "no cached reference is committed");
     assert!(!e.contains_key("tip_error_m"), "no reference, no tip error");
-    let progress = ENTRY_S + 0.05 + 0.02 * 7.5;
+    let progress = ENTRY_S + L0 + 0.02 * 7.5;
     assert!(
         (e["tip_progress_m"] - progress).abs() < 1e-9,
         "{} vs {progress}",
@@ -322,14 +327,14 @@ fn arch_insertion_uses_a_cached_reference_when_present() {
     let mut csv = String::from("t,x,y,z\n");
     for k in 0..=750 {
         let t = k as f64 * 0.01;
-        let x = trunk.point_at(ENTRY_S + 0.05 + 0.02 * t);
+        let x = trunk.point_at(ENTRY_S + L0 + 0.02 * t);
         csv.push_str(&format!("{t},{:?},{:?},{:?}\n", x.x, x.y, x.z));
     }
     std::fs::write(refdir.join("tip_trajectory.csv"), csv).unwrap();
     let leaked: &'static str = Box::leak(dir.display().to_string().into_boxed_str());
     let s: &'static ArchInsertion = Box::leak(Box::new(ArchInsertion { datasets: Some(leaked) }));
     let p = params(s, &[]);
-    let sum = run(s, &p, &arch_follower(0.05, Vec3::zeros()));
+    let sum = run(s, &p, &arch_follower(L0, Vec3::zeros()));
     let e = &sum.errors;
     assert_eq!(e["reference_available"], 1.0);
     assert!(
@@ -343,9 +348,9 @@ fn arch_insertion_uses_a_cached_reference_when_present() {
         build: Box::new(move |_| {
             let trunk = surgbench_core::vessel::aortic_arch().trunk;
             Box::new(Kinematic {
-                path: Arc::new(move |s| trunk.point_at(ENTRY_S + if s <= 0.05 { s } else { 0.05 + 0.9 * (s - 0.05) })),
+                path: Arc::new(move |s| trunk.point_at(ENTRY_S + if s <= L0 { s } else { L0 + 0.9 * (s - L0) })),
                 hand: Arc::new(|_, _| Vec3::zeros()),
-                l0: 0.05,
+                l0: L0,
                 n: 40,
                 t: 0.0,
                 cmd: DeviceCommand::default(),
@@ -359,11 +364,15 @@ fn arch_insertion_uses_a_cached_reference_when_present() {
     let sum2 = run_single(s, &p2, r2.as_ref(), &slow, &Fidelity::default(), &RunOptions::default()).unwrap();
     assert_eq!(sum2.errors["reference_available"], 0.0);
     // Scored against the reference, the slow wire's final tip error is the
-    // 15 mm it lags along the curved trunk (chord <= arc).
+    // 15 mm it lags along the trunk (chord <= arc; equal, up to rounding, on
+    // the straight ascending aorta where both tips end).
     let sum3 = run_single(s, &p, r.as_ref(), &slow, &Fidelity::default(), &RunOptions::default()).unwrap();
     let lag = 0.1 * 0.02 * 7.5;
     let err = sum3.errors["tip_error_m"];
-    assert!(err <= lag && err > 0.9 * lag, "final tip error {err} vs lag {lag}");
+    assert!(
+        err <= lag * (1.0 + 1e-9) && err > 0.9 * lag,
+        "final tip error {err} vs lag {lag}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 

@@ -165,6 +165,28 @@ impl Wire {
             tip_torque: Vec3::zeros(),
         })
     }
+    /// [`Wire::rod`] with the last `j_len` m of the soft tip pre-curved to
+    /// `kappa` (1/m) towards the clamp's local y (a J or angled tip);
+    /// `kappa = 0` leaves the tip straight.
+    fn rod_with_j(&self, length: f64, base: Iso3, j_len: f64, kappa: f64) -> Result<RodBody, UsageError> {
+        let mut rod = self.rod(length, base)?;
+        if kappa == 0.0 {
+            return Ok(rod);
+        }
+        if !(j_len > 0.0 && j_len < self.tip_len) {
+            return Err(UsageError(format!(
+                "j_length {j_len} m must be in (0, tip_length = {} m)",
+                self.tip_len
+            )));
+        }
+        let tip = rod.sections.pop().expect("two sections");
+        rod.sections
+            .push(self.section(length - j_len, tip.youngs_modulus, [0.0; 2]));
+        // Darboux component on d2 turns the tangent towards +d1 (local y).
+        rod.sections
+            .push(self.section(length, tip.youngs_modulus, [0.0, kappa]));
+        Ok(rod)
+    }
     fn body_ei(&self) -> f64 {
         self.body_e * PI * self.radius.powi(4) / 4.0
     }
@@ -183,6 +205,18 @@ fn contact(p: &Params, margin: f64) -> Result<ContactParams, UsageError> {
         )));
     }
     Ok(c)
+}
+
+/// Insertion moves the clamp along its straight tangent: it must stay in
+/// the straight segment (length `straight`, m) it starts in, or the scene
+/// would drive it through the wall. `reach` = clamp start + deepest feed (m).
+fn clamp_stays_in_straight(reach: f64, straight: f64, what: &str) -> Result<(), UsageError> {
+    if reach > straight {
+        return Err(UsageError(format!(
+            "the clamp would be fed {reach:.3} m along the {straight:.3} m {what}: past its end, into the wall (shorten the push)"
+        )));
+    }
+    Ok(())
 }
 
 fn check_lumen(wire_radius: f64, lumen: f64, what: &str) -> Result<(), UsageError> {
@@ -403,6 +437,11 @@ impl ArchInsertion {
     pub const DEFAULT: Self = Self { datasets: None };
 }
 
+/// Default J length (m) of the arch wire: half a turn of the 3 mm J common
+/// on 0.035-inch access guidewires (`j_curvature = 333 1/m`); the default
+/// tip is straight (`j_curvature = 0`), as the scene is specified.
+const ARCH_J_LENGTH: f64 = PI * 3e-3;
+
 const ARCH_PARAMS: &[ParamSpec] = &[
     P_WIRE_RADIUS,
     P_BODY_E,
@@ -415,11 +454,25 @@ const ARCH_PARAMS: &[ParamSpec] = &[
     P_GRAVITY,
     p("insertion_speed", 0.02, "m/s", Range::Positive, "constant feed speed"),
     p(
-        "initial_length",
-        0.05,
+        "j_curvature",
+        0.0,
+        "1/m",
+        Range::NonNegative,
+        "rest curvature of the tip's J (towards the clamp's local y; 0: straight tip)",
+    ),
+    p(
+        "j_length",
+        ARCH_J_LENGTH,
         "m",
         Range::Positive,
-        "free wire length at t = 0 (fits the 60 mm descending segment)",
+        "length of the curved J at the tip (within the soft tip)",
+    ),
+    p(
+        "initial_length",
+        0.2,
+        "m",
+        Range::Positive,
+        "free wire length at t = 0: the tip starts 5 mm short of the arch (the clamp needs the 150 mm of straight below it for the push)",
     ),
     p(
         "rotation_step",
@@ -558,11 +611,16 @@ impl Scenario for ArchInsertion {
                 vessel::ARCH_DESCENDING
             )));
         }
+        let feed = p.get("insertion_speed") * p.get("duration");
+        clamp_stays_in_straight(ENTRY_S + feed, vessel::ARCH_DESCENDING, "descending aorta")?;
         let arch = Arc::new(vessel::aortic_arch());
         let mut scene = Scene::empty(self.id());
         scene.duration = p.get("duration");
         scene.gravity = Vec3::new(0.0, 0.0, -p.get("gravity"));
-        scene.bodies.push(wire.rod(l0, arch.trunk.frame_at(ENTRY_S))?.into());
+        let (jl, kappa) = (p.get("j_length"), p.get("j_curvature"));
+        scene
+            .bodies
+            .push(wire.rod_with_j(l0, arch.trunk.frame_at(ENTRY_S), jl, kappa)?.into());
         scene.environment.vessel = Some(arch.clone());
         scene.environment.contact = contact(p, wire.radius)?;
         scene.control = push_with_rotations(
@@ -740,12 +798,6 @@ impl Scenario for BranchSelection {
         };
         let session = Session::parse(name, text).map_err(|e| UsageError(e.to_string()))?;
         let (l0, jl, kappa) = (p.get("initial_length"), p.get("j_length"), p.get("j_curvature"));
-        if !(jl < wire.tip_len) {
-            return Err(UsageError(format!(
-                "j_length {jl} m must be shorter than tip_length {} m",
-                wire.tip_len
-            )));
-        }
         if l0 + ENTRY_S > vessel::Y_TRUNK {
             return Err(UsageError(format!(
                 "initial_length {l0} m does not fit the {} m trunk",
@@ -762,11 +814,7 @@ impl Scenario for BranchSelection {
         let y = Arc::new(vessel::y_bifurcation());
         // Clamp on the trunk axis, its local y (where the J bends) turned to +z.
         let base = y.trunk.frame_at(ENTRY_S) * Iso3::rotation(Vec3::x() * (PI / 2.0));
-        let mut rod = wire.rod(l0, base)?;
-        let tip = rod.sections.pop().expect("two sections");
-        rod.sections.push(wire.section(l0 - jl, tip.youngs_modulus, [0.0; 2]));
-        // Darboux component on d2 turns the tangent towards +d1 (local y).
-        rod.sections.push(wire.section(l0, tip.youngs_modulus, [0.0, kappa]));
+        let rod = wire.rod_with_j(l0, base, jl, kappa)?;
         let mut scene = Scene::empty(self.id());
         scene.duration = p.get("duration");
         scene.bodies.push(rod.into());
@@ -1057,9 +1105,11 @@ const CAPSTAN_PARAMS: &[ParamSpec] = &[
     p("pull_length", 0.01, "m", Range::Positive, "length pulled back"),
 ];
 
-const CAPSTAN_ENTRY: f64 = 10e-3;
 const CAPSTAN_EXIT: f64 = 40e-3;
-const CAPSTAN_INITIAL: f64 = 5e-3;
+/// Straight before the bend beyond what the feed needs (m).
+const CAPSTAN_SLACK: f64 = 10e-3;
+/// How far the tip is threaded past the bend (m).
+const CAPSTAN_THREAD: f64 = 15e-3;
 
 struct CapstanRun {
     scene: Scene,
@@ -1167,9 +1217,16 @@ impl Scenario for Capstan {
                 "bend_radius {rc} m must exceed twice the tube_radius {lumen} m"
             )));
         }
+        // The wire starts straight in the entry and is fed until its tip is
+        // CAPSTAN_THREAD past the bend; the clamp moves with the feed, so the
+        // straight must hold the clamp's whole travel (rc theta + thread +
+        // the tip's start short of the bend) plus slack, and the wire starts
+        // that long: the clamp ends CAPSTAN_SLACK / 2 short of the bend.
+        let entry = rc * theta + CAPSTAN_THREAD + CAPSTAN_SLACK;
+        let l0 = entry - CAPSTAN_SLACK / 2.0;
         // The tube starts ENTRY_S behind the clamp.
         let tube = CenterlineBuilder::new(Vec3::new(-ENTRY_S, 0.0, 0.0), Vec3::x())
-            .line(ENTRY_S + CAPSTAN_ENTRY)
+            .line(ENTRY_S + entry)
             .arc(rc, theta, Vec3::y())
             .line(CAPSTAN_EXIT)
             .build_constant(lumen)
@@ -1177,14 +1234,16 @@ impl Scenario for Capstan {
         let exit_dir = Vec3::new(theta.cos(), theta.sin(), 0.0);
         let t_in = p.get("tip_force");
         let e = p.get("youngs_modulus");
-        let mut rod = RodBody::uniform(CAPSTAN_INITIAL, r, e, p.get("poisson_ratio"), p.get("density"));
+        let mut rod = RodBody::uniform(l0, r, e, p.get("poisson_ratio"), p.get("density"));
         rod.tip_force = exit_dir * t_in;
-        // Thread the tip 15 mm into the exit segment, dwell, pull back.
-        let ins = CAPSTAN_ENTRY + rc * theta + 15e-3 - CAPSTAN_INITIAL;
+        // Thread the tip into the exit segment, dwell, pull back.
+        let ins = entry + rc * theta + CAPSTAN_THREAD - l0;
+        clamp_stays_in_straight(ins, entry, "entry straight")?;
         let (vi, vp, lp) = (p.get("insert_speed"), p.get("pull_speed"), p.get("pull_length"));
-        if lp >= 14e-3 {
+        if lp >= CAPSTAN_THREAD - 1e-3 {
             return Err(UsageError(format!(
-                "pull_length {lp} m would pull the tip back into the bend (max 14 mm)"
+                "pull_length {lp} m would pull the tip back into the bend (max {} m)",
+                CAPSTAN_THREAD - 1e-3
             )));
         }
         let t1 = ins / vi;
@@ -1213,7 +1272,7 @@ impl Scenario for Capstan {
             window: (t2 + 0.4 * (t3 - t2), t3),
             axis: Vec3::x(),
             bending: ei / (rc * rc * t_in),
-            energy: t_in * ratio_ref * (ins + CAPSTAN_INITIAL) + ei * (ins + CAPSTAN_INITIAL) / (rc * rc),
+            energy: t_in * ratio_ref * (ins + l0) + ei * (ins + l0) / (rc * rc),
             track: Mutex::new(Track::default()),
         }))
     }
@@ -1614,6 +1673,7 @@ impl Scenario for CoronaryTortuous {
                 cor.trunk.length()
             )));
         }
+        clamp_stays_in_straight(ENTRY_S + advance, vessel::CORONARY_ENTRY, "coronary entry")?;
         let mut scene = Scene::empty(self.id());
         scene.duration = duration;
         scene.bodies.push(wire.rod(l0, cor.trunk.frame_at(ENTRY_S))?.into());

@@ -134,6 +134,14 @@ pub trait Model: Send {
     fn energy_probe(&mut self) -> Option<&mut dyn EnergyProbe> {
         None
     }
+
+    /// Model-specific diagnostics of the current state (name -> value, SI,
+    /// the unit in the name), e.g. the error a surface mapping adds on its
+    /// own. The harness reports them beside the scenario's metrics as
+    /// `diag_<name>`; they are not scored against a reference.
+    fn diagnostics(&self) -> std::collections::BTreeMap<String, f64> {
+        std::collections::BTreeMap::new()
+    }
 }
 
 /// Generalized coordinates, potential energy and forces: the conformance

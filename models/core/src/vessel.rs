@@ -111,19 +111,26 @@ impl Sdf for Vessel {
 pub const AORTA_RADIUS: f64 = 12.5e-3;
 /// Aortic arch centreline radius (m).
 pub const ARCH_RADIUS: f64 = 35e-3;
-/// Length of the straight descending segment before the arch (m).
-pub const ARCH_DESCENDING: f64 = 60e-3;
+/// Length of the straight descending segment before the arch (m): the
+/// thoracic descending aorta is about 20 cm long, and scenes that feed a
+/// wire by moving its clamp along this straight need the room (the clamp
+/// must stay inside the lumen for the whole push).
+pub const ARCH_DESCENDING: f64 = 210e-3;
 /// Length of the straight ascending segment after the arch (m).
 pub const ARCH_ASCENDING: f64 = 50e-3;
+/// Length of each supra-aortic branch (m).
+pub const ARCH_BRANCH_LENGTH: f64 = 200e-3;
 
 /// Aortic arch traversed as in a femoral approach: the trunk starts at the
-/// origin heading up (+z) the descending aorta (60 mm), turns over the arch
+/// origin heading up (+z) the descending aorta (210 mm), turns over the arch
 /// (radius 35 mm, 180 degrees, towards -x), and runs down the ascending aorta
 /// (50 mm, -z); lumen diameter 25 mm. The supra-aortic branches leave the top
 /// of the arch upwards at 60, 90 and 120 degrees along it: `left-subclavian`
 /// (9 mm, met first), `left-common-carotid` (7.5 mm), `brachiocephalic`
-/// (12 mm), each 50 mm long. (With gravity along -z the patient would be
-/// standing: scenes choose their gravity.)
+/// (12 mm), each [`ARCH_BRANCH_LENGTH`] long: long enough that a wire
+/// pushed into one keeps going for the whole of `arch-insertion` instead of
+/// meeting a closed end no real artery has. (With gravity along -z the
+/// patient would be standing: scenes choose their gravity.)
 pub fn aortic_arch() -> Vessel {
     let trunk = CenterlineBuilder::new(Vec3::zeros(), Vec3::z())
         .line(ARCH_DESCENDING)
@@ -140,7 +147,7 @@ pub fn aortic_arch() -> Vessel {
         Branch {
             name: name.to_string(),
             tube: CenterlineBuilder::new(start, dir)
-                .line(50e-3)
+                .line(ARCH_BRANCH_LENGTH)
                 .build_constant(radius)
                 .expect("static branch geometry is valid"),
         }
@@ -158,10 +165,11 @@ pub fn aortic_arch() -> Vessel {
 
 /// Coronary lumen radius (m): diameter 3 mm.
 pub const CORONARY_RADIUS: f64 = 1.5e-3;
-/// Straight entry (guide-catheter) segment of the coronary (m).
-pub const CORONARY_ENTRY: f64 = 40e-3;
+/// Straight entry (guide-catheter) segment of the coronary (m): long enough
+/// that a clamp fed along it stays in the straight for `coronary-tortuous`.
+pub const CORONARY_ENTRY: f64 = 60e-3;
 
-/// Tortuous coronary-like tube, diameter 3 mm: a 40 mm straight entry along
+/// Tortuous coronary-like tube, diameter 3 mm: a 60 mm straight entry along
 /// +x (where a guide catheter would sit), then five bends in alternating
 /// planes with curvature radii 8, 5, 6, 5 and 10 mm, then 30 mm straight.
 pub fn coronary_tortuous() -> Vessel {

@@ -1,6 +1,6 @@
 //! The harness contract: [`DerFactory`] and [`DerModel`].
 
-use crate::rod::{DEFAULT_FRICTION_CREEP, DerParams, DerRod, Integrator, TwistDynamics};
+use crate::rod::{DEFAULT_FRICTION_CREEP, DEFAULT_SUBSTEP_DEPTH, DerParams, DerRod, Integrator, TwistDynamics};
 use surgbench_core::{
     BuildError, Capability, DeviceCommand, EnergyProbe, Family, Fidelity, FidelityKey, Model, ModelFactory,
     Observation, Scene, SimError, StepStats, Unsupported,
@@ -15,6 +15,7 @@ const CAPABILITIES: &[Capability] = &[
     Capability::Insertion,
     Capability::VesselContact,
     Capability::Friction,
+    Capability::Flow,
     Capability::HapticForce,
 ];
 
@@ -38,6 +39,10 @@ const KEYS: &[FidelityKey] = &[
     FidelityKey {
         name: "friction_creep",
         doc: "stick-slip width of the smoothed friction as a creep speed (m/s), default 1e-6",
+    },
+    FidelityKey {
+        name: "substep_depth",
+        doc: "largest number of step halvings when Newton fails (integer 0..=20), default 6 (dt/64)",
     },
 ];
 
@@ -164,6 +169,13 @@ impl ModelFactory for DerFactory {
                 format!("must be > 0 m/s, got {creep}"),
             ));
         }
+        let depth = f.extra("substep_depth", DEFAULT_SUBSTEP_DEPTH as f64);
+        if !(0.0..=20.0).contains(&depth) || depth.fract() != 0.0 {
+            return Err(BuildError::bad(
+                "substep_depth",
+                format!("must be an integer in 0..=20, got {depth}"),
+            ));
+        }
         rod.params = DerParams {
             integrator: if flag("integrator")? {
                 Integrator::Newmark
@@ -179,9 +191,11 @@ impl ModelFactory for DerFactory {
             max_iterations: f.iterations.unwrap_or(25),
             tolerance,
             friction_creep: creep,
+            max_substep_depth: depth as usize,
         };
         rod.gravity = scene.gravity;
         rod.set_vessel(scene.environment.vessel.clone(), scene.environment.contact);
+        rod.set_flow(scene.environment.flow.clone());
         Ok(Box::new(DerModel::new(rod, dt)))
     }
 }

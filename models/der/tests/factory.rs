@@ -33,8 +33,8 @@ fn check_rejects_what_der_cannot_model() {
     }
     let mut flow = sag_scene();
     flow.environment.flow = Some(std::sync::Arc::new(Still));
-    let e = f.check(&flow).unwrap_err();
-    assert!(e.reason.contains("flow"), "{e}");
+    // Flow drag is modelled (see tests/flow.rs).
+    assert!(f.check(&flow).is_ok(), "flow scene rejected: {:?}", f.check(&flow));
 }
 
 #[test]
@@ -48,6 +48,7 @@ fn bad_fidelity_is_a_value_not_a_panic() {
         &["tolerance=2"],
         &["segments=1"],
         &["friction_creep=0"],
+        &["substep_depth=1.5"],
         &["friction_creep=-1e-6"],
     ] {
         let fid = Fidelity::parse_pairs(pairs).unwrap();

@@ -13,6 +13,8 @@
 //!   energy constraints ([`pbd`], fidelity `pbd=1`).
 //! * Surface = boundary faces of the mesh; its vertices follow the nodes
 //!   through an MLS map with a linear basis and cubic-spline weight ([`mls`]).
+//! * Follower pressure loads on boundary triangles with their exact load
+//!   stiffness ([`pressure`], Bonet & Wood Sec. 6.5).
 //! * Symplectic Euler, backward Euler or quasi-static stepping ([`model`]).
 //!
 //! Units are SI throughout (m, kg, s, N, Pa).
@@ -34,8 +36,10 @@ pub mod kernel;
 pub mod mls;
 pub mod model;
 pub mod pbd;
+pub mod pressure;
 
 pub use elastic::{PointElastic, StateCache};
 pub use mls::MlsMap;
-pub use model::{Integrator, MESHLESS_KEYS, MeshlessFactory, MeshlessSettings, MeshlessTissue};
+pub use model::{Integrator, MESHLESS_KEYS, MappingError, MeshlessFactory, MeshlessSettings, MeshlessTissue};
 pub use pbd::PbdConstraints;
+pub use pressure::PressureLoad;

@@ -20,11 +20,27 @@
 //!
 //! **Boundary conditions.** Fixed nodes stay at rest, driven nodes sit at
 //! `X + insertion d`, rollers (`partial_fixed`) hold the flagged world
-//! components at rest. Pressure loads are not implemented (Unsupported).
+//! components at rest.
+//!
+//! **Pressure loads** (`TissueBody::pressure_faces`) act on the scene's
+//! boundary triangles, whose vertices are simulation nodes of this model
+//! (every mesh node is a point primitive), so the consistent nodal forces
+//! go straight to those nodes: no mapping is involved (the MLS surface
+//! particles are a read-out of the nodes, not degrees of freedom). Each
+//! face gives `-(s p / 6) (b - a) x (c - a)` to each of its nodes, on the
+//! *current* configuration (follower load), `s` the command's load factor
+//! ([`crate::pressure`], Bonet & Wood, Sec. 6.5). Newton's Hessian-vector
+//! product carries the symmetric part of the exact load stiffness (CG
+//! needs symmetry; the skew part lives on the border edges of an open
+//! loaded surface and is `O(p/E)` relative to the elastic stiffness, so
+//! Newton still converges, linearly at that rate). Its line search holds
+//! the pressure at the iterate's value (a dead load within the search),
+//! since a follower load on an open surface has no potential. The energy
+//! probe and `EnergyObs` leave the pressure out for the same reason.
 //!
 //! **Reports.** `hand_force` is the force the body exerts on whatever drives
 //! the driven nodes: the sum over driven nodes of the internal elastic force
-//! `-dU/dx` plus their weight (N). `TissueObs::inverted` counts nodes whose
+//! `-dU/dx` plus their weight and any pressure on them (N). `TissueObs::inverted` counts nodes whose
 //! deformation gradient has `det F <= 0`; `volume_error` uses the scene's
 //! tets as virtual tetrahedra. With PBD on, the corrections change the
 //! configuration; they are not forces and do not enter `hand_force`.
@@ -40,6 +56,7 @@ use surgbench_core::{
 use crate::elastic::{PointElastic, StateCache};
 use crate::mls::MlsMap;
 use crate::pbd::PbdConstraints;
+use crate::pressure::PressureLoad;
 
 /// Fidelity extras of `meshless` (besides `dt` and `iterations` = PBD sweeps).
 pub const MESHLESS_KEYS: &[FidelityKey] = &[
@@ -181,6 +198,7 @@ pub struct MeshlessFactory;
 
 const CAPS: &[Capability] = &[
     Capability::Tissue,
+    Capability::PressureLoad,
     Capability::RollerConstraint,
     Capability::HapticForce,
 ];
@@ -223,6 +241,33 @@ impl ModelFactory for MeshlessFactory {
     }
 }
 
+/// Distances between MLS-mapped surface particles and where they should be (m).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct MappingError {
+    /// Root mean square over the surface particles (m).
+    pub rms: f64,
+    /// Largest (m).
+    pub max: f64,
+    /// Number of surface particles.
+    pub count: usize,
+}
+
+impl MappingError {
+    fn of(d: impl Iterator<Item = f64>) -> Self {
+        let (mut s2, mut max, mut count) = (0.0, 0.0f64, 0usize);
+        for v in d {
+            s2 += v * v;
+            max = max.max(v);
+            count += 1;
+        }
+        Self {
+            rms: if count > 0 { (s2 / count as f64).sqrt() } else { 0.0 },
+            max,
+            count,
+        }
+    }
+}
+
 /// Newton-CG result.
 #[derive(Debug, Clone, Copy)]
 struct SolveInfo {
@@ -262,6 +307,11 @@ pub struct MeshlessTissue {
     forces: Vec<Vec3>,
     /// Whether `forces` holds the internal forces at the current `x`.
     forces_at_x: bool,
+    pressure: PressureLoad,
+    /// Load factor of the pressure this step (the command's `insertion`).
+    load_scale: f64,
+    /// Pressure nodal forces at the last gradient evaluation (N).
+    pforces: Vec<Vec3>,
 }
 
 impl MeshlessTissue {
@@ -378,6 +428,9 @@ impl MeshlessTissue {
             hand_force: Vec3::zeros(),
             forces: vec![Vec3::zeros(); nn],
             forces_at_x: false,
+            pressure: PressureLoad::new(&body.pressure_faces),
+            load_scale: 0.0,
+            pforces: vec![Vec3::zeros(); nn],
             el,
         })
     }
@@ -453,6 +506,32 @@ impl MeshlessTissue {
             .fold(0.0, f64::max)
     }
 
+    /// RMS and max distance (m) between each MLS-mapped surface particle
+    /// and the simulated node it sits on, at the current configuration (the
+    /// same distances as [`Self::surface_mapping_error`], which is their max).
+    pub fn surface_mapping_errors(&self) -> MappingError {
+        MappingError::of(
+            self.surface_nodes
+                .iter()
+                .enumerate()
+                .map(|(k, &i)| (self.mls.map_one(k, &self.x) - self.x[i]).norm()),
+        )
+    }
+
+    /// The error the MLS surface mapping adds on its own for a known
+    /// displacement field `u` (m of rest position -> m): nodes placed at
+    /// `X_j + u(X_j)`, surface particles mapped from them and compared with
+    /// the exact surface `X_s + u(X_s)`. Independent of the simulated state.
+    /// Zero (to rounding) for affine `u`; `O(R^2)` for smooth `u`, `R` the
+    /// MLS radius.
+    pub fn mls_mapping_error_of(&self, u: impl Fn(&Vec3) -> Vec3) -> MappingError {
+        let x: Vec<Vec3> = self.el.rest.iter().map(|p| p + u(p)).collect();
+        MappingError::of(self.surface_nodes.iter().enumerate().map(|(k, &i)| {
+            let xs = self.el.rest[i];
+            (self.mls.map_one(k, &x) - (xs + u(&xs))).norm()
+        }))
+    }
+
     /// Stability limit of the explicit integrator at rest, `2 / omega_max`
     /// (s), with `omega_max^2` the largest eigenvalue of `M^-1 K` over the
     /// free components, estimated by `iters` power iterations (from below,
@@ -516,13 +595,15 @@ impl MeshlessTissue {
         self.el.add_forces(x, &self.cache, &mut self.forces);
     }
 
-    /// Potential of the incremental problem at `x` (J).
-    fn objective(&self, x: &[Vec3], xn: &[Vec3], xt: &[Vec3], a_in: f64, a_damp: f64) -> f64 {
+    /// Potential of the incremental problem at `x` (J), with the pressure
+    /// held at the nodal forces `frozen` (N) as a dead load.
+    #[allow(clippy::too_many_arguments)]
+    fn objective(&self, x: &[Vec3], xn: &[Vec3], xt: &[Vec3], a_in: f64, a_damp: f64, frozen: &[Vec3]) -> f64 {
         let (u, hg) = self.el.energy(x);
         let mut e = u + hg;
         for i in 0..x.len() {
             let m = self.mass[i];
-            e -= m * self.gravity.dot(&x[i]);
+            e -= m * self.gravity.dot(&x[i]) + frozen[i].dot(&x[i]);
             if a_in > 0.0 {
                 e += 0.5 * m * a_in * (x[i] - xt[i]).norm_squared() + 0.5 * m * a_damp * (x[i] - xn[i]).norm_squared();
             }
@@ -530,12 +611,21 @@ impl MeshlessTissue {
         e
     }
 
-    /// Gradient of [`Self::objective`], masked to the free components.
+    /// Pressure nodal forces at `x` into `self.pforces` (N).
+    fn pressure_forces(&mut self, x: &[Vec3]) {
+        self.pforces.iter_mut().for_each(|f| *f = Vec3::zeros());
+        self.pressure.add_forces(x, self.load_scale, &mut self.pforces);
+    }
+
+    /// Gradient of [`Self::objective`] with the pressure frozen at `x`,
+    /// masked to the free components; leaves the pressure forces at `x` in
+    /// `self.pforces`.
     fn gradient(&mut self, x: &[Vec3], xn: &[Vec3], xt: &[Vec3], a_in: f64, a_damp: f64, g: &mut [Vec3]) {
         self.internal_forces(x);
+        self.pressure_forces(x);
         for i in 0..x.len() {
             let m = self.mass[i];
-            let mut gi = -self.forces[i] - self.gravity * m;
+            let mut gi = -self.forces[i] - self.pforces[i] - self.gravity * m;
             if a_in > 0.0 {
                 gi += (x[i] - xt[i]) * (m * a_in) + (x[i] - xn[i]) * (m * a_damp);
             }
@@ -583,6 +673,7 @@ impl MeshlessTissue {
             for k in 0..max_cg {
                 hp.iter_mut().for_each(|v| *v = Vec3::zeros());
                 self.el.add_hess_vec(&self.cache, &p, &mut hp);
+                self.pressure.add_sym_stiffness(&x, self.load_scale, &p, &mut hp);
                 let mut php = 0.0;
                 for i in 0..n {
                     hp[i] = (hp[i] + p[i] * (self.mass[i] * diag)).component_mul(&self.axis_free[i]);
@@ -615,7 +706,8 @@ impl MeshlessTissue {
                 }
             }
             // Armijo backtracking on the potential.
-            let phi0 = self.objective(&x, xn, xt, a_in, a_damp);
+            let frozen = std::mem::take(&mut self.pforces);
+            let phi0 = self.objective(&x, xn, xt, a_in, a_damp, &frozen);
             let slope: f64 = (0..n).map(|i| g[i].dot(&dx[i])).sum();
             let mut step = 1.0;
             let mut accepted = false;
@@ -623,7 +715,7 @@ impl MeshlessTissue {
                 for i in 0..n {
                     xtry[i] = x[i] + dx[i] * step;
                 }
-                let phi = self.objective(&xtry, xn, xt, a_in, a_damp);
+                let phi = self.objective(&xtry, xn, xt, a_in, a_damp, &frozen);
                 // The 1e-13 |phi0| slack absorbs rounding of the energy sum near convergence.
                 if phi <= phi0 + 1e-4 * step * slope + 1e-13 * phi0.abs() {
                     accepted = true;
@@ -631,6 +723,7 @@ impl MeshlessTissue {
                 }
                 step *= 0.5;
             }
+            self.pforces = frozen;
             if !accepted {
                 break;
             }
@@ -699,15 +792,18 @@ impl Model for MeshlessTissue {
             residual: 0.0,
             converged: true,
         };
+        self.load_scale = cmd.insertion;
         match self.set.integrator {
             Integrator::SymplecticEuler => {
+                let x = std::mem::take(&mut self.x);
                 if !self.forces_at_x {
-                    let x = std::mem::take(&mut self.x);
                     self.internal_forces(&x);
-                    self.x = x;
                 }
+                self.pressure_forces(&x);
+                self.x = x;
                 for i in 0..n {
-                    let a = self.forces[i] / self.mass[i] + self.gravity - self.v[i] * self.damping;
+                    let f = self.forces[i] + self.pforces[i];
+                    let a = f / self.mass[i] + self.gravity - self.v[i] * self.damping;
                     self.v[i] = (self.v[i] + a * dt).component_mul(&self.axis_free[i]);
                     self.x[i] += self.v[i] * dt;
                 }
@@ -765,12 +861,13 @@ impl Model for MeshlessTissue {
         }
         let x = std::mem::take(&mut self.x);
         self.internal_forces(&x);
+        self.pressure_forces(&x);
         self.x = x;
         self.forces_at_x = true;
         self.hand_force = self
             .driven
             .iter()
-            .map(|&(i, _)| self.forces[i] + self.gravity * self.mass[i])
+            .map(|&(i, _)| self.forces[i] + self.pforces[i] + self.gravity * self.mass[i])
             .sum();
         Ok(stats)
     }
@@ -802,10 +899,24 @@ impl Model for MeshlessTissue {
     fn energy_probe(&mut self) -> Option<&mut dyn EnergyProbe> {
         Some(self)
     }
+
+    /// The MLS surface's distance from the node surface it maps (m):
+    /// `mls_surface_error_rms_m`, `mls_surface_error_max_m` over the surface
+    /// particles, the error the mapping adds on its own in this state.
+    fn diagnostics(&self) -> std::collections::BTreeMap<String, f64> {
+        let e = self.surface_mapping_errors();
+        [
+            ("mls_surface_error_rms_m".to_string(), e.rms),
+            ("mls_surface_error_max_m".to_string(), e.max),
+        ]
+        .into()
+    }
 }
 
 /// Coordinates are the node positions `(x0, y0, z0, x1, ...)` (m); the
-/// potential is strain + hourglass energy + gravity (J); forces are `-dE/dq` (N).
+/// potential is strain + hourglass energy + gravity (J); forces are `-dE/dq`
+/// (N). Pressure loads are left out: a follower load on an open surface has
+/// no potential ([`crate::pressure`]).
 impl EnergyProbe for MeshlessTissue {
     fn coords(&self) -> Vec<f64> {
         self.x.iter().flat_map(|p| p.iter().copied()).collect()

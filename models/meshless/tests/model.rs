@@ -186,9 +186,17 @@ fn factory_declines_what_it_cannot_model() {
         let face = mesh::boundary_faces(&t.mesh)[0];
         t.pressure_faces.push((face, 100.0));
     }
-    assert!(f.check(&pressure).unwrap_err().reason.contains("pressure"));
+    assert!(f.check(&pressure).is_ok(), "pressure loads are supported");
+    // A vessel (contact with a wall) is not modelled.
+    let mut vessel = tissue.clone();
+    vessel.environment.vessel = Some(std::sync::Arc::new(surgbench_core::sdf::StraightTube {
+        origin: Vec3::zeros(),
+        axis: Vec3::z(),
+        radius: 0.1,
+    }));
+    assert!(f.check(&vessel).unwrap_err().reason.contains("vessel"));
     assert!(matches!(
-        f.build(&pressure, &Fidelity::default()),
+        f.build(&vessel, &Fidelity::default()),
         Err(BuildError::Unsupported(_))
     ));
     for bad in [

@@ -1,7 +1,8 @@
 //! Step cost of the PBD models (criterion). Workloads from the design targets:
 //! a 100-segment rod in a tube with contact (<= 0.2 ms/step), a ~20k-tet block
 //! at 10 iterations (<= 10 ms/step) and the same with hash activation of one
-//! box (<= 1 ms/step). Single-threaded.
+//! box (<= 1 ms/step). The tissue runs at 1 and 2 solver threads (the
+//! `threads` fidelity extra; results are bit-identical across counts).
 
 use std::hint::black_box;
 use std::sync::Arc;
@@ -52,7 +53,7 @@ fn cmd(k: usize) -> DeviceCommand {
     }
 }
 
-fn tissue_model(hash_box: f64) -> Box<dyn Model> {
+fn tissue_model(hash_box: f64, threads: usize) -> Box<dyn Model> {
     // 8 x 8 x 50 cells of 5 mm = 19,200 tets; x = 0 face fixed, a tool patch
     // pushes the x = 4 cm face at mid height.
     let h = 5e-3;
@@ -88,6 +89,7 @@ fn tissue_model(hash_box: f64) -> Box<dyn Model> {
     if hash_box > 0.0 {
         f.extras.insert("hash_box".into(), hash_box);
     }
+    f.extras.insert("threads".into(), threads as f64);
     let mut m = PbdTissueFactory.build(&scene, &f).unwrap();
     for k in 0..20 {
         m.step(
@@ -115,8 +117,13 @@ fn bench(c: &mut Criterion) {
             })
         });
     }
-    for (name, d) in [("tissue19k_it10_full", 0.0), ("tissue19k_it10_hash_box15mm", 0.015)] {
-        let mut m = tissue_model(d);
+    for (name, d, threads) in [
+        ("tissue19k_it10_full_t1", 0.0, 1),
+        ("tissue19k_it10_full_t2", 0.0, 2),
+        ("tissue19k_it10_hash_box15mm_t1", 0.015, 1),
+        ("tissue19k_it10_hash_box15mm_t2", 0.015, 2),
+    ] {
+        let mut m = tissue_model(d, threads);
         let full = DeviceCommand {
             insertion: 1.0,
             ..Default::default()

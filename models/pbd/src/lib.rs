@@ -9,8 +9,13 @@
 //!   rod of Kugelstadt & Schömer 2016, with vessel contact and position-level
 //!   Coulomb friction (Macklin et al. 2014);
 //! * [`PbdTissueFactory`] (`pbd-tissue`): tetrahedral tissue with edge-distance
-//!   and tetrahedral volume constraints, and optional hash-table local
-//!   activation of the box around the tool.
+//!   and tetrahedral volume constraints, solved by colour-ordered Gauss-Seidel
+//!   on `threads` workers with bit-identical results for any count
+//!   ([`color`]), and optional hash-table local activation of the box around
+//!   the tool;
+//! * [`GhostSurface`] (library feature, no harness scene uses it yet): the
+//!   inner-wall triangles of a tet vessel wall, carried by its nodes, for
+//!   catheter collision ([`PbdTissue::collide_particles`]).
 //!
 //! Units are SI throughout (m, kg, s, N, Pa, rad).
 //!
@@ -27,15 +32,21 @@
 //! assert!(model.observe().rods[0].tip().z < 0.0);
 //! ```
 
+pub mod color;
+pub mod ghost;
 pub mod hash;
 pub mod mesh;
 pub mod rod;
 pub mod tissue;
 
+pub use ghost::{GhostSurface, SurfaceHit, project_particle_triangle};
 pub use hash::BoxHash;
 pub use mesh::block_tet_mesh;
 pub use rod::{PbdRod, PbdRodFactory, RodSettings};
-pub use tissue::{PbdTissue, PbdTissueFactory, TissueSettings, project_volume, tet_volume, tet_volume_gradients};
+pub use tissue::{
+    ContactParticle, ParticleContact, PbdTissue, PbdTissueFactory, TissueSettings, project_volume, tet_volume,
+    tet_volume_gradients,
+};
 
 /// Range checks of the solver knobs both PBD models share: `dt` (s),
 /// `iterations`, `substeps` (an integer count carried as `f64` fidelity

@@ -46,6 +46,13 @@ use surgbench_core::{
 
 type Quat = Quaternion<f64>;
 
+/// Upper bound on the Lipschitz constant of the scene's SDF used by the
+/// contact early-out. An exact signed distance (analytic tubes, meshes) and a
+/// `min` of them (unions) are 1-Lipschitz; the trilinear interpolant of a
+/// 1-Lipschitz grid ([`surgbench_core::sdf::VoxelSdf`]) has each gradient
+/// component bounded by 1, so `|grad| <= sqrt(3) < 2`.
+pub const SDF_LIPSCHITZ_BOUND: f64 = 2.0;
+
 /// Blood density used for flow drag (kg/m^3).
 pub const BLOOD_DENSITY: f64 = 1060.0;
 /// Drag coefficient of a cylinder in cross flow used for flow drag
@@ -200,6 +207,8 @@ pub struct PbdRod {
     set: RodSettings,
     n: usize,
     l: f64,
+    /// `1 / l` (1/m).
+    inv_l: f64,
     x: Vec<Vec3>,
     v: Vec<Vec3>,
     x_prev: Vec<Vec3>,
@@ -213,6 +222,8 @@ pub struct PbdRod {
     omega: Vec<Vec3>,
     /// Body-frame inertia per segment `(transverse, axial)` (kg m^2).
     inertia: Vec<[f64; 2]>,
+    /// Body-frame inverse inertia per segment `(1/I_t, 1/I_t, 1/I_a)` (1/(kg m^2)).
+    inv_inertia: Vec<Vec3>,
     /// Stretch-shear compliance per segment, material frame.
     ss_alpha: Vec<Vec3>,
     /// Stretch-shear stiffness `(GA, GA, EA)` per segment (N).
@@ -239,6 +250,23 @@ pub struct PbdRod {
     mu_k: f64,
     margin: f64,
     contacts: Vec<Contact>,
+    /// Per particle: where the SDF was last queried and its value there
+    /// (`phi = +inf` before the first query), for the contact early-out.
+    sdf_cache: Vec<(Vec3, f64)>,
+    /// Substep length `h` the `*_at` / `ss_inv_den` caches were built for (s).
+    cache_h: f64,
+    /// `alpha_ss / h^2` per segment.
+    ss_at: Vec<Vec3>,
+    /// `1 / (J W J^T + alpha_ss / h^2)` per segment (diagonal in the material frame).
+    ss_inv_den: Vec<Vec3>,
+    /// `alpha_bt / h^2` per joint.
+    bt_at: Vec<Vec3>,
+    /// Per joint `(a_a + a_b, c_b - a_b, c_a - a_a) / len^2` from the
+    /// body-frame inverse inertias `diag(a, a, c)` of the segments before (a)
+    /// and after (b) the joint (`a_a = c_a = 0` at the clamp).
+    bt_jw: Vec<Vec3>,
+    /// `1 / bt_len` per joint (1/m).
+    bt_inv_len: Vec<f64>,
     time: f64,
     last_cmd: DeviceCommand,
     hand_force: Vec3,
@@ -259,11 +287,78 @@ fn skew(v: &Vec3) -> Mat3 {
 }
 
 /// Material frame of the clamp: `d3` along the base's local x, `(d1, d2)` =
-/// local `(y, z)`.
+/// local `(y, z)`. The map `(e1, e2, e3) -> (y, z, x)` is the rotation by
+/// 120 degrees about `(1, 1, 1)/sqrt(3)`: quaternion `(1/2, 1/2, 1/2, 1/2)`
+/// (exact in floating point, no matrix-to-quaternion iteration per substep).
 fn material_of_base(rot: &UnitQuaternion<f64>) -> Quat {
-    let m = Matrix3::from_columns(&[Vec3::y(), Vec3::z(), Vec3::x()]);
-    let q0 = UnitQuaternion::from_matrix(&m);
-    (rot * q0).into_inner()
+    rot.into_inner() * Quat::new(0.5, 0.5, 0.5, 0.5)
+}
+
+/// `q (u, 0)`: right product with a pure quaternion. For a unit `q` with
+/// rotation `R`, `(R u, 0) q = q (u, 0)`, so a world-frame rotation vector
+/// `R u` applied as `q + 1/2 (R u, 0) q` is `q + 1/2 q (u, 0)` with the
+/// body-frame `u`: no rotation matrix needed.
+#[inline]
+fn mul_pure(q: &Quat, u: &Vec3) -> Quat {
+    let v = q.imag();
+    Quat::from_parts(-v.dot(u), u * q.w + v.cross(u))
+}
+
+/// `normalize(q + 1/2 q (u, 0))`: the XPBD orientation update with a
+/// body-frame rotation vector `u` (rad).
+///
+/// For a near-unit `p` (`|p|^2 = 1 + eps`, `|eps| < 1e-4`) the normalisation
+/// uses one Newton step of `1/sqrt` from 1, `1 - eps/2`, which leaves
+/// `||p| (1 - eps/2) - 1| <= 3/8 eps^2 < 4e-9` and, applied again at the next
+/// update, contracts any norm error quadratically; larger updates use the
+/// exact square root. This keeps `sqrt` and a division off the Gauss-Seidel
+/// dependency chain, where almost every update is tiny. (`predict`
+/// normalises exactly once per substep.)
+#[inline]
+fn rotate_body(q: &Quat, u: &Vec3) -> Quat {
+    let p = q + mul_pure(q, &(u * 0.5));
+    let eps = p.norm_squared() - 1.0;
+    if eps.abs() < 1e-4 {
+        p * (1.0 - 0.5 * eps)
+    } else {
+        p * (1.0 / p.norm())
+    }
+}
+
+/// `conj(a) b` written out (the relative rotation of two frames).
+#[inline]
+fn conj_mul(a: &Quat, b: &Quat) -> Quat {
+    let (va, vb) = (a.imag(), b.imag());
+    Quat::from_parts(a.w * b.w + va.dot(&vb), vb * a.w - va * b.w - va.cross(&vb))
+}
+
+/// Solve the symmetric 3x3 system `K x = b` with the adjugate,
+/// `x = adj(K) b / det(K)`: one division, so little latency on the
+/// Gauss-Seidel dependency chain (an `L D L^T` solve has three in series).
+/// `k = [k00, k01, k02, k11, k12, k22]`. `None` unless `K` is positive
+/// definite by Sylvester's criterion (`k00 > 0`, `k00 k11 - k01^2 > 0`,
+/// `det > 0`), which `J W J^T + alpha~` is whenever a constraint has a
+/// moving body.
+#[inline]
+fn solve_spd3(k: [f64; 6], b: &Vec3) -> Option<Vec3> {
+    let [k00, k01, k02, k11, k12, k22] = k;
+    // Cofactors (symmetric).
+    let c00 = k11 * k22 - k12 * k12;
+    let c01 = k02 * k12 - k01 * k22;
+    let c02 = k01 * k12 - k02 * k11;
+    let c11 = k00 * k22 - k02 * k02;
+    let c12 = k01 * k02 - k00 * k12;
+    let c22 = k00 * k11 - k01 * k01;
+    let det = k00 * c00 + k01 * c01 + k02 * c02;
+    if !(k00 > 0.0 && c22 > 0.0 && det > 0.0) {
+        return None;
+    }
+    let inv = 1.0 / det;
+    Some(Vec3::new(
+        (c00 * b.x + c01 * b.y + c02 * b.z) * inv,
+        (c01 * b.x + c11 * b.y + c12 * b.z) * inv,
+        (c02 * b.x + c12 * b.y + c22 * b.z) * inv,
+    ))
 }
 
 /// Body-frame relative rotation by angle `|k| len` about the material axis `k/|k|`.
@@ -278,7 +373,7 @@ fn rest_rotation(kappa: &Vec3, len: f64) -> Quat {
 /// Discrete Darboux vector `(2/len) Im(conj(qa) qb)` with the real part made
 /// non-negative (K&S 2016 sec. 4.2); returns `(Omega, w, v)`.
 fn darboux(qa: &Quat, qb: &Quat, len: f64) -> (Vec3, f64, Vec3) {
-    let mut r = qa.conjugate() * qb;
+    let mut r = conj_mul(qa, qb);
     if r.w < 0.0 {
         r = -r;
     }
@@ -373,11 +468,24 @@ impl PbdRod {
         }
         let mut w: Vec<f64> = mass.iter().map(|m| 1.0 / m).collect();
         w[0] = 0.0;
+        let inv_inertia: Vec<Vec3> = inertia
+            .iter()
+            .map(|&[it, ia]| Vec3::new(1.0 / it, 1.0 / it, 1.0 / ia))
+            .collect();
+        let bt_jw = (0..n)
+            .map(|k| {
+                let wb = inv_inertia[k];
+                let wa = if k == 0 { Vec3::zeros() } else { inv_inertia[k - 1] };
+                Vec3::new(wa.x + wb.x, wb.z - wb.x, wa.z - wa.x) / (bt_len[k] * bt_len[k])
+            })
+            .collect();
+        let bt_inv_len = bt_len.iter().map(|l| 1.0 / l).collect();
         let c = scene.environment.contact;
         Ok(Self {
             set,
             n,
             l,
+            inv_l: 1.0 / l,
             v: vec![Vec3::zeros(); n + 1],
             x_prev: x.clone(),
             rest: x.clone(),
@@ -389,6 +497,7 @@ impl PbdRod {
             q_prev: q.clone(),
             q,
             omega: vec![Vec3::zeros(); n],
+            inv_inertia,
             inertia,
             ss_alpha,
             ss_k,
@@ -409,7 +518,14 @@ impl PbdRod {
             mu_s: c.friction_static,
             mu_k: c.friction_dynamic,
             margin: c.margin,
-            contacts: Vec::new(),
+            contacts: Vec::with_capacity(n),
+            sdf_cache: vec![(Vec3::zeros(), f64::INFINITY); n + 1],
+            cache_h: f64::NAN,
+            ss_at: vec![Vec3::zeros(); n],
+            ss_inv_den: vec![Vec3::zeros(); n],
+            bt_at: vec![Vec3::zeros(); n],
+            bt_jw,
+            bt_inv_len,
             time: 0.0,
             last_cmd: DeviceCommand::default(),
             hand_force: Vec3::zeros(),
@@ -493,16 +609,27 @@ impl PbdRod {
         }
     }
 
+    /// Linearise the vessel wall at every particle near it. One
+    /// `distance_gradient` query per particle and substep at most, and none
+    /// for a particle provably deep in the lumen: a signed distance field
+    /// changes by at most `L |dx|` when the point moves by `dx`
+    /// ([`SDF_LIPSCHITZ_BOUND`]), so the cached `phi` plus `L` times the
+    /// distance moved since that query bounds `phi` from above.
     fn detect_contacts(&mut self) {
         self.contacts.clear();
         let Some(sdf) = &self.vessel else { return };
         for i in 1..=self.n {
             let xi = self.x[i];
             let r = self.radius_node[i];
-            let d0 = sdf.distance(&xi) + r + self.margin;
             let band = 2.0 * (xi - self.x_prev[i]).norm() + r;
+            let (xc, phic) = self.sdf_cache[i];
+            if phic + SDF_LIPSCHITZ_BOUND * (xi - xc).norm() + r + self.margin <= -band {
+                continue;
+            }
+            let (phi, g) = sdf.distance_gradient(&xi);
+            self.sdf_cache[i] = (xi, phi);
+            let d0 = phi + r + self.margin;
             if d0 > -band {
-                let g = sdf.gradient(&xi);
                 let gn = g.norm();
                 if gn > 0.0 {
                     self.contacts.push(Contact {
@@ -517,78 +644,100 @@ impl PbdRod {
         }
     }
 
+    /// Rebuild the per-substep constants (`alpha / h^2` and the stretch-shear
+    /// denominators) when the substep length changes.
+    fn refresh_caches(&mut self, h: f64) {
+        if h == self.cache_h {
+            return;
+        }
+        self.cache_h = h;
+        let inv_h2 = 1.0 / (h * h);
+        let inv_l2 = 1.0 / (self.l * self.l);
+        for j in 0..self.n {
+            let al = self.ss_alpha[j] * inv_h2;
+            let wx = (self.w[j] + self.w[j + 1]) * inv_l2;
+            let a = self.inv_inertia[j].x;
+            self.ss_at[j] = al;
+            self.ss_inv_den[j] = Vec3::new(1.0 / (wx + a + al.x), 1.0 / (wx + a + al.y), 1.0 / (wx + al.z));
+            self.bt_at[j] = self.bt_alpha[j] * inv_h2;
+        }
+    }
+
     /// Stretch-shear constraint of segment `j` (XPBD, exact block, solved in
-    /// the material frame where `J W J^T` is diagonal).
-    fn solve_stretch_shear(&mut self, j: usize, h2: f64, last: bool) {
-        let l = self.l;
-        let r = rotmat(&self.q[j]);
-        let d3 = r.column(2).into_owned();
-        let gamma = (self.x[j + 1] - self.x[j]) / l - d3;
-        let gb = r.transpose() * gamma;
-        let (w0, w1) = (self.w[j], self.w[j + 1]);
-        let wx = (w0 + w1) / (l * l);
-        let a = 1.0 / self.inertia[j][0];
-        let al = self.ss_alpha[j] / h2;
-        let lam = self.lambda_ss[j];
-        let kdiag = Vec3::new(wx + a, wx + a, wx);
-        let rhs = -(gb + al.component_mul(&lam));
+    /// the material frame where `J W J^T` is diagonal:
+    /// `diag(wx + 1/I_t, wx + 1/I_t, wx)`, `wx = (w_j + w_{j+1}) / l^2`).
+    #[inline]
+    fn solve_stretch_shear(&mut self, j: usize, last: bool) {
+        let inv_l = self.inv_l;
+        let qj = self.q[j];
+        let r = rotmat(&qj);
+        let gb = r.tr_mul(&((self.x[j + 1] - self.x[j]) * inv_l)) - Vec3::z();
+        let rhs = -(gb + self.ss_at[j].component_mul(&self.lambda_ss[j]));
         if last {
             self.residual = self.residual.max(rhs.amax());
         }
-        let dl = rhs.component_div(&(kdiag + al));
+        let dl = rhs.component_mul(&self.ss_inv_den[j]);
         self.lambda_ss[j] += dl;
         let dw = r * dl;
-        self.x[j] -= dw * (w0 / l);
-        self.x[j + 1] += dw * (w1 / l);
-        let d1 = r.column(0).into_owned();
-        let d2 = r.column(1).into_owned();
-        let dth = (d1 * dl.y - d2 * dl.x) * a;
-        let qj = self.q[j];
-        self.q[j] = (qj + Quat::from_imag(dth * 0.5) * qj).normalize();
+        self.x[j] -= dw * (self.w[j] * inv_l);
+        self.x[j + 1] += dw * (self.w[j + 1] * inv_l);
+        // World rotation (d1 dl_y - d2 dl_x) / I_t, i.e. body (dl_y, -dl_x, 0) / I_t.
+        let a = self.inv_inertia[j].x;
+        self.q[j] = rotate_body(&qj, &Vec3::new(dl.y * a, -dl.x * a, 0.0));
     }
 
     /// Bend-twist constraint of joint `k` between segment `k-1` (or the clamp
     /// frame for `k = 0`) and segment `k` (XPBD, exact 3x3 block).
-    fn solve_bend_twist(&mut self, k: usize, h2: f64, last: bool) {
+    ///
+    /// With `r = conj(q_a) q_b = (w, v)`, `B = w I + [v]_x` and `A = B^T`, the
+    /// Jacobians on world rotation vectors are `J_a = -(1/len) A R_a^T` and
+    /// `J_b = (1/len) B R_b^T`, so with body-frame inverse inertias `W_a`,
+    /// `W_b`: `J W J^T = (B W_b B^T + A W_a A^T) / len^2`, and the body-frame
+    /// rotations are `u_b = W_b A dlambda / len`, `u_a = -W_a B dlambda / len`.
+    #[inline]
+    fn solve_bend_twist(&mut self, k: usize, last: bool) {
         let len = self.bt_len[k];
+        let s = self.bt_inv_len[k];
         let qa = if k == 0 { self.clamp_q } else { self.q[k - 1] };
         let qb = self.q[k];
-        let (om, w, v) = darboux(&qa, &qb, len);
-        let c = om - self.omega0[k];
-        let sv = skew(&v);
-        let a_blk = Mat3::identity() * w - sv; // J_a = -(1/len) A R_a^T
-        let b_blk = Mat3::identity() * w + sv; // J_b = (1/len) B R_b^T
-        let wb = {
-            let [it, ia] = self.inertia[k];
-            Vec3::new(1.0 / it, 1.0 / it, 1.0 / ia)
-        };
-        let mut kmat = b_blk * Mat3::from_diagonal(&wb) * b_blk.transpose();
-        let wa = if k == 0 {
-            None
-        } else {
-            let [it, ia] = self.inertia[k - 1];
-            let wa = Vec3::new(1.0 / it, 1.0 / it, 1.0 / ia);
-            kmat += a_blk * Mat3::from_diagonal(&wa) * a_blk.transpose();
-            Some(wa)
-        };
-        kmat /= len * len;
-        let al = self.bt_alpha[k] / h2;
-        kmat += Mat3::from_diagonal(&al);
+        // Darboux vector as in `darboux`, without its division.
+        let mut r = conj_mul(&qa, &qb);
+        if r.w < 0.0 {
+            r = -r;
+        }
+        let (w, v) = (r.w, r.imag());
+        let c = v * (2.0 * s) - self.omega0[k];
+        // With W = diag(a, a, c) and |r| = 1 (so B B^T = B^T B = I - v v^T):
+        // B W B^T = a (I - v v^T) + (c - a) b3 b3^T with b3 = B e3 = (v_y, -v_x, w),
+        // A W A^T = a (I - v v^T) + (c - a) a3 a3^T with a3 = A e3 = (-v_y, v_x, w).
+        let jc = self.bt_jw[k];
+        let (b3, a3) = (Vec3::new(v.y, -v.x, w), Vec3::new(-v.y, v.x, w));
+        let sv = v * jc.x;
+        let tb = b3 * jc.y;
+        let ta = a3 * jc.z;
+        let al = self.bt_at[k];
+        let kk = [
+            jc.x - sv.x * v.x + tb.x * b3.x + ta.x * a3.x + al.x,
+            -sv.x * v.y + tb.x * b3.y + ta.x * a3.y,
+            -sv.x * v.z + tb.x * b3.z + ta.x * a3.z,
+            jc.x - sv.y * v.y + tb.y * b3.y + ta.y * a3.y + al.y,
+            -sv.y * v.z + tb.y * b3.z + ta.y * a3.z,
+            jc.x - sv.z * v.z + tb.z * b3.z + ta.z * a3.z + al.z,
+        ];
         let rhs = -(c + al.component_mul(&self.lambda_bt[k]));
         if last {
             // Dimensionless: rotation angle over the joint.
             self.residual = self.residual.max(rhs.amax() * len);
         }
-        let Some(chol) = kmat.cholesky() else { return };
-        let dl = chol.solve(&rhs);
+        let Some(dl) = solve_spd3(kk, &rhs) else { return };
         self.lambda_bt[k] += dl;
-        let rb = rotmat(&qb);
-        let dth_b = rb * wb.component_mul(&(b_blk.transpose() * dl)) / len;
-        self.q[k] = (qb + Quat::from_imag(dth_b * 0.5) * qb).normalize();
-        if let Some(wa) = wa {
-            let ra = rotmat(&qa);
-            let dth_a = -(ra * wa.component_mul(&(a_blk.transpose() * dl))) / len;
-            self.q[k - 1] = (qa + Quat::from_imag(dth_a * 0.5) * qa).normalize();
+        // A dl = w dl - v x dl, B dl = w dl + v x dl.
+        let wdl = dl * w;
+        let vxdl = v.cross(&dl);
+        self.q[k] = rotate_body(&qb, &(self.inv_inertia[k].component_mul(&(wdl - vxdl)) * s));
+        if k > 0 {
+            let u = self.inv_inertia[k - 1].component_mul(&(wdl + vxdl)) * (-s);
+            self.q[k - 1] = rotate_body(&qa, &u);
         }
     }
 
@@ -628,12 +777,9 @@ impl PbdRod {
         self.x[0] = self.clamp_pos;
         self.v[0] = (self.clamp_pos - old_clamp) / h;
         self.detect_contacts();
-        for l in &mut self.lambda_ss {
-            *l = Vec3::zeros();
-        }
-        for l in &mut self.lambda_bt {
-            *l = Vec3::zeros();
-        }
+        self.refresh_caches(h);
+        self.lambda_ss.fill(Vec3::zeros());
+        self.lambda_bt.fill(Vec3::zeros());
         let h2 = h * h;
         let iters = self.set.iterations;
         for it in 0..iters {
@@ -641,11 +787,11 @@ impl PbdRod {
             if last {
                 self.residual = 0.0;
             }
-            self.solve_bend_twist(0, h2, last);
+            self.solve_bend_twist(0, last);
             for j in 0..self.n {
-                self.solve_stretch_shear(j, h2, last);
+                self.solve_stretch_shear(j, last);
                 if j + 1 < self.n {
-                    self.solve_bend_twist(j + 1, h2, last);
+                    self.solve_bend_twist(j + 1, last);
                 }
             }
             self.projections += 2 * self.n as u64;
@@ -694,6 +840,22 @@ impl PbdRod {
         None
     }
 
+    /// Energies of the current state. The elastic part is the Cosserat strain
+    /// energy of the module docs, which is exactly the XPBD compliance
+    /// potential `1/2 C^T alpha^-1 C` of the constraints as solved
+    /// (`C = Gamma`, `alpha_ss = 1/(l K_ss)`; `C = Omega - Omega0`,
+    /// `alpha_bt = 1/(len K_bt)`): consistent, not an approximation. When the
+    /// Gauss-Seidel solve is under-iterated the constraints stay violated and
+    /// this energy counts the violation at full material stiffness; that is
+    /// the real state, not an accounting error. Measured on a 0.5 m,
+    /// 0.2 mm-radius nitinol wire falling from horizontal (100 segments,
+    /// dt = 1 ms, no damping): after 0.4 s the largest shear strain is 1.7 at
+    /// 2 iterations, 0.52 at 10, 0.18 at 200, 0.075 at 10 iterations x 10
+    /// substeps, and the elastic energy 170 J, 2.8 J, 0.93 J, 0.29 J against
+    /// ~1e-3 J of work done by gravity: the chain's Gauss-Seidel converges
+    /// slowly (stiff stretch-shear against light segments), and energy
+    /// watchdogs rightly trip on such runs. Substeps help more than
+    /// iterations (Macklin et al. 2019, "Small Steps in Physics Simulation").
     fn energy(&self) -> EnergyObs {
         let mut e = EnergyObs::default();
         for i in 1..=self.n {
@@ -796,5 +958,87 @@ impl Model for PbdRod {
 
     fn dt(&self) -> f64 {
         self.set.dt
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// splitmix64 in [-1, 1).
+    struct Rng(u64);
+    impl Rng {
+        fn next(&mut self) -> f64 {
+            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = self.0;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        }
+        fn quat(&mut self) -> Quat {
+            Quat::new(self.next(), self.next(), self.next(), self.next()).normalize()
+        }
+        fn vec(&mut self) -> Vec3 {
+            Vec3::new(self.next(), self.next(), self.next())
+        }
+    }
+
+    #[test]
+    fn body_frame_update_equals_the_world_frame_update() {
+        let mut rng = Rng(1);
+        for case in 0..100 {
+            let q = rng.quat();
+            let u = rng.vec() * 1e-3;
+            let world = rotmat(&q) * u;
+            let exact = (q + Quat::from_imag(world * 0.5) * q).normalize();
+            let fast = rotate_body(&q, &u);
+            // Same quaternion up to the Newton normalisation: |eps| = |u|^2/4
+            // <= 7.5e-7, error <= 3/8 eps^2 ~ 2e-13, plus roundoff.
+            assert!((fast - exact).norm() < 1e-12, "case {case}: {fast:?} vs {exact:?}");
+            assert!(
+                (conj_mul(&q, &exact) - q.conjugate() * exact).norm() < 1e-15,
+                "case {case}: conj_mul"
+            );
+        }
+        // A large update takes the exact branch.
+        let q = rng.quat();
+        let u = Vec3::new(0.3, -0.2, 0.1);
+        let exact = (q + mul_pure(&q, &(u * 0.5))).normalize();
+        assert!((rotate_body(&q, &u) - exact).norm() < 1e-15);
+    }
+
+    #[test]
+    fn bend_twist_block_equals_the_explicit_matrix_product() {
+        // K = (B Wb B^T + A Wa A^T) / len^2 with B = w I + [v], A = B^T,
+        // against the closed form used in `solve_bend_twist`.
+        let mut rng = Rng(2);
+        for case in 0..100 {
+            let r = rng.quat();
+            let (w, v) = (r.w, r.imag());
+            let b = Mat3::identity() * w + skew(&v);
+            let (ta, aa) = (1.0 + rng.next().abs(), 3.0 + rng.next().abs());
+            let (tb, ab) = (1.0 + rng.next().abs(), 3.0 + rng.next().abs());
+            let wa = Vec3::new(ta, ta, aa);
+            let wb = Vec3::new(tb, tb, ab);
+            let len = 0.5;
+            let k = (b * Mat3::from_diagonal(&wb) * b.transpose() + b.transpose() * Mat3::from_diagonal(&wa) * b)
+                / (len * len);
+            let jc = Vec3::new(wa.x + wb.x, wb.z - wb.x, wa.z - wa.x) / (len * len);
+            let (b3, a3) = (Vec3::new(v.y, -v.x, w), Vec3::new(-v.y, v.x, w));
+            let closed = Mat3::identity() * jc.x - v * v.transpose() * jc.x
+                + b3 * b3.transpose() * jc.y
+                + a3 * a3.transpose() * jc.z;
+            // Relies on |r| = 1; roundoff of O(10) flops on O(10) entries.
+            assert!((k - closed).amax() < 1e-12, "case {case}: {k} vs {closed}");
+            let rhs = rng.vec();
+            let kk = [k[(0, 0)], k[(0, 1)], k[(0, 2)], k[(1, 1)], k[(1, 2)], k[(2, 2)]];
+            let x = solve_spd3(kk, &rhs).expect("SPD");
+            assert!(
+                (k * x - rhs).norm() < 1e-12 * rhs.norm().max(1.0),
+                "case {case}: LDL solve"
+            );
+        }
+        // Not positive definite: refused, not garbage.
+        assert!(solve_spd3([1.0, 2.0, 0.0, 1.0, 0.0, 1.0], &Vec3::x()).is_none());
     }
 }

@@ -267,6 +267,48 @@ fn rigid_motion_of_the_scene_moves_the_answer_rigidly() {
     assert!(df < 1e-6, "hand force mismatch {df}");
 }
 
+#[test]
+fn results_are_bit_identical_for_any_thread_count() {
+    // The blocks of one colour touch disjoint nodes (crate::color), so the
+    // parallel colour-ordered Gauss-Seidel must not depend on the threads,
+    // also with local activation (a subset of every block).
+    let h = 5e-3;
+    let scene = block_scene(
+        [3, 3, 16],
+        h,
+        0.45,
+        |p| p.x == 0.0,
+        |p| p.x == 3.0 * h && (p.z - 8.0 * h).abs() < 1.1 * h,
+        Vec3::new(-1e-3, 0.0, 0.0),
+    );
+    for hash_box in [0.0, 0.02] {
+        let mut runs = Vec::new();
+        for threads in [1.0, 2.0, 3.0] {
+            let mut f = fid(5, 2, 1e-3, 10.0);
+            f.extras.insert("threads".into(), threads);
+            if hash_box > 0.0 {
+                f.extras.insert("hash_box".into(), hash_box);
+            }
+            let (o, m) = run(&scene, &f, 40, 20);
+            assert_eq!(m.settings().threads, threads as usize);
+            runs.push((threads, o));
+        }
+        for (threads, o) in &runs[1..] {
+            assert!(
+                *o == runs[0].1,
+                "hash_box {hash_box}: {threads} threads differ from 1 thread (max node diff {:e} m)",
+                o.tissues[0]
+                    .nodes
+                    .iter()
+                    .zip(&runs[0].1.tissues[0].nodes)
+                    .map(|(a, b)| (a - b).norm())
+                    .fold(0.0, f64::max)
+            );
+        }
+        assert!(runs[0].1.tissues[0].nodes != runs[0].1.tissues[0].rest, "nothing moved");
+    }
+}
+
 /// A 3x3-node tool patch pushed 1.5 mm into the x = 3 cm face of a
 /// 6x6x24-cell slab (3 x 3 x 12 cm, the x = 0 face fixed like a vessel wall on
 /// its surroundings) at mid height z = 6 cm; returns (rms and max node error in the tool's core
@@ -365,6 +407,14 @@ fn bad_input_is_rejected_not_panicked() {
         PbdTissueFactory.build(&scene, &f),
         Err(BuildError::BadParameter { .. })
     ));
+    for threads in [0.0, 1.5, -2.0] {
+        let mut f = fid(10, 1, 1e-3, 0.0);
+        f.extras.insert("threads".into(), threads);
+        assert!(
+            matches!(PbdTissueFactory.build(&scene, &f), Err(BuildError::BadParameter { .. })),
+            "threads = {threads} accepted"
+        );
+    }
     let neg = block_scene([1, 1, 1], h, -0.2, |p| p.z == 0.0, |_| false, Vec3::zeros());
     assert!(PbdTissueFactory.check(&neg).is_err());
     assert!(PbdTissueFactory.check(&Scene::empty("none")).is_err());
