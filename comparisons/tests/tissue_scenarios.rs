@@ -79,13 +79,20 @@ fn every_tissue_scenario_instantiates_validates_and_needs_what_it_expects() {
         ),
         ("volume-preservation", vec![Capability::Tissue]),
         ("truth-cube", vec![Capability::Tissue]),
+        ("wall-indentation", vec![Capability::Tissue]),
     ]
     .into();
     let all = tissue::all();
     let ids: Vec<&str> = all.iter().map(|s| s.id()).collect();
     assert_eq!(
         ids,
-        ["block-compression", "lame-tube", "volume-preservation", "truth-cube"]
+        [
+            "block-compression",
+            "lame-tube",
+            "volume-preservation",
+            "truth-cube",
+            "wall-indentation"
+        ]
     );
     for sc in all {
         let id = sc.id();

@@ -1,5 +1,6 @@
 //! Tissue statics: block compression, Lamé tube, volume preservation under
-//! squash and twist, and the Truth Cube phantom.
+//! squash and twist, the Truth Cube phantom, and a catheter tip (bonded
+//! flat punch) indenting a vessel-wall sector.
 //!
 //! Shared conventions (SI units: m, kg, s, N, Pa, rad):
 //! * every scene holds exactly one [`TissueBody`], no gravity, and is static:
@@ -22,14 +23,15 @@
 //!   (`|V/V0 - 1|`), computed here from the observed node positions and the
 //!   scene's tets, not taken from the model's own report.
 //!
-//! Tubes (`lame-tube`) have their axis along z through the origin; blocks
-//! occupy `[0, L]^3` with the loaded face at `z = L`.
+//! Tubes (`lame-tube`, `wall-indentation`) have their axis along z through
+//! the origin; blocks occupy `[0, L]^3` with the loaded face at `z = L`.
 
 use super::vessel::datasets_dir;
 use crate::scenario::{ParamSpec, Params, Range, Scenario, ScenarioRun, UsageError, sweep_of};
 use std::collections::{BTreeMap, HashSet};
 use std::f64::consts::PI;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 use surgbench_core::mesh::{self, truth_cube};
 use surgbench_core::{
     Body, ControlKey, ControlTimeline, Family, Fidelity, Mat3, Observation, Scene, Settle, SolidMaterial, TetMesh,
@@ -44,7 +46,13 @@ pub const DEFAULT_LEVEL: usize = 1;
 pub const MAX_LEVEL: usize = 3;
 /// Every tissue scenario, in report order.
 pub fn all() -> Vec<&'static dyn Scenario> {
-    vec![&BlockCompression, &LameTube, &VolumePreservation, &TruthCube]
+    vec![
+        &BlockCompression,
+        &LameTube,
+        &VolumePreservation,
+        &TruthCube,
+        &WallIndentation,
+    ]
 }
 
 const fn p(name: &'static str, default: f64, unit: &'static str, range: Range, doc: &'static str) -> ParamSpec {
@@ -89,6 +97,12 @@ const SETTLE: ParamSpec = p(
 /// Cells per edge of the block meshes at `level`: `4 * 2^level`.
 pub fn block_cells(level: usize) -> usize {
     4 << level
+}
+
+/// The default sweep of every tissue scenario: mesh levels 0..=[`MAX_LEVEL`].
+pub fn level_sweep() -> Vec<Fidelity> {
+    let levels: Vec<f64> = (0..=MAX_LEVEL).map(|l| l as f64).collect();
+    sweep_of("mesh_level", &levels)
 }
 
 /// `fidelity.mesh_level` or [`DEFAULT_LEVEL`], rejected past [`MAX_LEVEL`].
@@ -227,11 +241,39 @@ fn meta_number(meta: &toml::Table, file: &Path, key: &str) -> Result<f64, UsageE
         .ok_or_else(|| UsageError(format!("{}: no number `parameters.{key}`", file.display())))
 }
 
-/// Rows of a numeric CSV with a header line; errors name file and line.
-fn read_csv(file: &Path, columns: usize) -> Result<Vec<Vec<f64>>, UsageError> {
+/// Read and parse `<dir>/meta.toml`; returns the table and its path.
+fn read_meta(dir: &Path) -> Result<(toml::Table, PathBuf), UsageError> {
+    let path = dir.join("meta.toml");
+    let text =
+        std::fs::read_to_string(&path).map_err(|e| UsageError(format!("cannot read {}: {e}", path.display())))?;
+    let meta = toml::from_str(&text).map_err(|e| UsageError(format!("{}: {}", path.display(), e.message())))?;
+    Ok((meta, path))
+}
+
+/// The named `columns` of a numeric CSV whose first line is a header, in
+/// the order asked, one `Vec` per row; a missing column, a short row or a
+/// non-finite number is an error naming file, line and column.
+pub fn read_csv_columns(file: &Path, columns: &[&str]) -> Result<Vec<Vec<f64>>, UsageError> {
     let text = std::fs::read_to_string(file).map_err(|e| UsageError(format!("cannot read {}: {e}", file.display())))?;
+    let mut lines = text.lines().enumerate();
+    let header: Vec<&str> = lines
+        .next()
+        .map(|(_, h)| h.split(',').map(str::trim).collect())
+        .unwrap_or_default();
+    let index: Vec<usize> = columns
+        .iter()
+        .map(|c| {
+            header.iter().position(|h| h == c).ok_or_else(|| {
+                UsageError(format!(
+                    "{}: missing column `{c}` (header: `{}`)",
+                    file.display(),
+                    header.join(",")
+                ))
+            })
+        })
+        .collect::<Result<_, _>>()?;
     let mut rows = Vec::new();
-    for (ln, line) in text.lines().enumerate().skip(1) {
+    for (ln, line) in lines {
         if line.trim().is_empty() {
             continue;
         }
@@ -240,35 +282,49 @@ fn read_csv(file: &Path, columns: usize) -> Result<Vec<Vec<f64>>, UsageError> {
             .map(|c| c.trim().parse::<f64>())
             .collect::<Result<_, _>>()
             .map_err(|_| UsageError(format!("{}:{}: not a row of numbers: `{line}`", file.display(), ln + 1)))?;
-        if row.len() != columns || !row.iter().all(|v| v.is_finite()) {
+        if row.len() != header.len() || !row.iter().all(|v| v.is_finite()) {
             return Err(UsageError(format!(
-                "{}:{}: expected {columns} finite numbers, got `{line}`",
+                "{}:{}: expected {} finite numbers, got `{line}`",
                 file.display(),
-                ln + 1
+                ln + 1,
+                header.len()
             )));
         }
-        rows.push(row);
+        rows.push(index.iter().map(|&i| row[i]).collect());
     }
     Ok(rows)
+}
+
+/// Two named columns as `(x, y)` pairs with `x` strictly increasing and at
+/// least two rows: a tabulated curve.
+fn read_curve(file: &Path, x: &str, y: &str) -> Result<Vec<(f64, f64)>, UsageError> {
+    let rows: Vec<(f64, f64)> = read_csv_columns(file, &[x, y])?
+        .into_iter()
+        .map(|r| (r[0], r[1]))
+        .collect();
+    if rows.len() < 2 || rows.windows(2).any(|w| !(w[1].0 > w[0].0)) {
+        return Err(UsageError(format!(
+            "{}: needs >= 2 rows of increasing `{x}`",
+            file.display()
+        )));
+    }
+    Ok(rows)
+}
+
+/// Linear interpolation of a tabulated curve (increasing `x`); `None`
+/// outside its range.
+fn interpolate(rows: &[(f64, f64)], x: f64) -> Option<f64> {
+    let i = rows.windows(2).position(|w| x >= w[0].0 && x <= w[1].0)?;
+    let (a, b) = (rows[i], rows[i + 1]);
+    Some(a.1 + (b.1 - a.1) * (x - a.0) / (b.0 - a.0))
 }
 
 impl BlockReference {
     /// Load from `<datasets>/reference/block-compression/`.
     pub fn load(datasets: &Path) -> Result<Self, UsageError> {
         let dir = datasets.join("reference/block-compression");
-        let meta_path = dir.join("meta.toml");
-        let text = std::fs::read_to_string(&meta_path)
-            .map_err(|e| UsageError(format!("cannot read {}: {e}", meta_path.display())))?;
-        let meta: toml::Table =
-            toml::from_str(&text).map_err(|e| UsageError(format!("{}: {}", meta_path.display(), e.message())))?;
-        let csv = dir.join("block-compression.csv");
-        let rows: Vec<(f64, f64)> = read_csv(&csv, 3)?.into_iter().map(|r| (r[0], r[2])).collect();
-        if rows.len() < 2 || rows.windows(2).any(|w| !(w[1].0 > w[0].0)) {
-            return Err(UsageError(format!(
-                "{}: needs >= 2 rows of increasing strain",
-                csv.display()
-            )));
-        }
+        let (meta, meta_path) = read_meta(&dir)?;
+        let rows = read_curve(&dir.join("block-compression.csv"), "strain", "force_n")?;
         Ok(Self {
             edge: meta_number(&meta, &meta_path, "edge")?,
             youngs_modulus: meta_number(&meta, &meta_path, "youngs_modulus")?,
@@ -288,12 +344,7 @@ impl BlockReference {
     /// displacements `strain * edge`: stress ~ E strain, force ~ stress
     /// edge^2). `None` outside the tabulated strains.
     pub fn force(&self, strain: f64, edge: f64, e: f64) -> Option<f64> {
-        let i = self
-            .rows
-            .windows(2)
-            .position(|w| strain >= w[0].0 && strain <= w[1].0)?;
-        let (a, b) = (self.rows[i], self.rows[i + 1]);
-        let f = a.1 + (b.1 - a.1) * (strain - a.0) / (b.0 - a.0);
+        let f = interpolate(&self.rows, strain)?;
         Some(f * (e / self.youngs_modulus) * (edge / self.edge).powi(2))
     }
 }
@@ -374,7 +425,7 @@ impl Scenario for BlockCompression {
         "force_error_rel"
     }
     fn sweep(&self) -> Vec<Fidelity> {
-        sweep_of("mesh_level", &[0.0, 1.0, 2.0, 3.0])
+        level_sweep()
     }
     fn instantiate(&self, p: &Params) -> Result<Box<dyn ScenarioRun>, UsageError> {
         self.instantiate_at(p, &Fidelity::default())
@@ -543,7 +594,7 @@ impl Scenario for LameTube {
         "rms_radial_error_rel"
     }
     fn sweep(&self) -> Vec<Fidelity> {
-        sweep_of("mesh_level", &[0.0, 1.0, 2.0, 3.0])
+        level_sweep()
     }
     fn instantiate(&self, p: &Params) -> Result<Box<dyn ScenarioRun>, UsageError> {
         self.instantiate_at(p, &Fidelity::default())
@@ -702,7 +753,7 @@ impl Scenario for VolumePreservation {
         "volume_change_rel"
     }
     fn sweep(&self) -> Vec<Fidelity> {
-        sweep_of("mesh_level", &[0.0, 1.0, 2.0, 3.0])
+        level_sweep()
     }
     fn instantiate(&self, p: &Params) -> Result<Box<dyn ScenarioRun>, UsageError> {
         self.instantiate_at(p, &Fidelity::default())
@@ -976,7 +1027,7 @@ impl Scenario for TruthCube {
         "rms_bead_error_m"
     }
     fn sweep(&self) -> Vec<Fidelity> {
-        sweep_of("mesh_level", &[0.0, 1.0, 2.0, 3.0])
+        level_sweep()
     }
     fn instantiate(&self, p: &Params) -> Result<Box<dyn ScenarioRun>, UsageError> {
         self.instantiate_at(p, &Fidelity::default())
@@ -1024,6 +1075,358 @@ impl Scenario for TruthCube {
             data_rms,
             // Bonded, nearly incompressible: a few times E V strain^2.
             work: 4.0 * e * edge.powi(3) * strain * strain,
+        }))
+    }
+}
+
+// ---------------------------------------------------------------------------
+// wall-indentation
+// ---------------------------------------------------------------------------
+
+/// Relative tolerance of the footprint rule `y^2 + (z - L/2)^2 <= r_p^2 (1 +
+/// tol)`: inclusive, so nodes exactly on the punch rim count on every level
+/// (the scikit-fem script applies the same rule to its DOFs).
+pub const FOOTPRINT_TOL: f64 = 1e-6;
+
+/// The scikit-fem wall-indentation reference
+/// (`datasets/reference/wall-indentation`): a sector of an artery wall
+/// (axis z, `-angle/2 <= theta <= angle/2`, ends and straight edges clamped,
+/// outer surface free) indented at `theta = 0, z = length/2` by a rigid
+/// flat-ended circular punch bonded to the inner wall and moved along `+x`;
+/// linear (small-strain) elasticity, P2 tets. Geometry and material are the
+/// reference's and are read from its `meta.toml`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WallReference {
+    /// Inner radius `a` (m).
+    pub inner_radius: f64,
+    /// Outer radius `b` (m); wall thickness `b - a`.
+    pub outer_radius: f64,
+    /// Length of the segment along z (m).
+    pub length: f64,
+    /// Opening angle of the sector (rad).
+    pub sector_angle: f64,
+    /// Punch (catheter tip) radius (m).
+    pub punch_radius: f64,
+    /// Young's modulus of the reference (Pa).
+    pub youngs_modulus: f64,
+    /// Poisson ratio of the reference.
+    pub poisson_ratio: f64,
+    /// `(depth (m), punch force (N))` rows of `wall-indentation.csv`.
+    pub curve: Vec<(f64, f64)>,
+    /// `(z (m), u_r / depth)` of the inner wall along `theta = 0`
+    /// (`surface-profile.csv`).
+    pub profile: Vec<(f64, f64)>,
+}
+
+impl WallReference {
+    /// Load from `<datasets>/reference/wall-indentation/`.
+    pub fn load(datasets: &Path) -> Result<Self, UsageError> {
+        let dir = datasets.join("reference/wall-indentation");
+        let (meta, path) = read_meta(&dir)?;
+        let num = |k: &str| meta_number(&meta, &path, k);
+        let r = Self {
+            inner_radius: num("inner_radius")?,
+            outer_radius: num("outer_radius")?,
+            length: num("length")?,
+            sector_angle: num("sector_angle")?,
+            punch_radius: num("punch_radius")?,
+            youngs_modulus: num("youngs_modulus")?,
+            poisson_ratio: num("poisson_ratio")?,
+            curve: read_curve(&dir.join("wall-indentation.csv"), "depth_m", "force_n")?,
+            profile: read_curve(&dir.join("surface-profile.csv"), "z_m", "u_r_over_depth")?,
+        };
+        let ok = r.inner_radius > 0.0
+            && r.outer_radius > r.inner_radius
+            && r.length > 0.0
+            && r.sector_angle > 0.0
+            && r.sector_angle < 2.0 * PI
+            && r.punch_radius > 0.0
+            && r.youngs_modulus > 0.0;
+        if !ok {
+            return Err(UsageError(format!("{}: inconsistent geometry {r:?}", path.display())));
+        }
+        Ok(r)
+    }
+
+    /// Largest depth the curve covers (m).
+    pub fn max_depth(&self) -> f64 {
+        self.curve.last().map_or(0.0, |r| r.0)
+    }
+
+    /// Punch force (N) at `depth` (m) for Young's modulus `e` (Pa): the
+    /// curve interpolated, times `e / E_ref` (linear elasticity with
+    /// prescribed displacements: stress and force scale with E). `None`
+    /// outside the tabulated depths.
+    pub fn force(&self, depth: f64, e: f64) -> Option<f64> {
+        Some(interpolate(&self.curve, depth)? * e / self.youngs_modulus)
+    }
+}
+
+/// Cells `(n_theta, n_r, n_z)` of the wall mesh at `level`: `2^level`
+/// through the wall and as many cells of that size as fit (rounded) around
+/// the inner arc and along the segment, so each level has 8x the tets of
+/// the one before.
+pub fn wall_cells(r: &WallReference, level: usize) -> (usize, usize, usize) {
+    let t = r.outer_radius - r.inner_radius;
+    let around = ((r.inner_radius * r.sector_angle / t).round() as usize).max(1);
+    let along = ((r.length / t).round() as usize).max(1);
+    (around << level, 1 << level, along << level)
+}
+
+/// The wall mesh at `level`: [`mesh::tube_sector`] turned about z by
+/// `-angle/2`, so the sector spans `-angle/2 <= theta <= angle/2` and the
+/// punch sits on the `+x` axis.
+pub fn wall_mesh(r: &WallReference, level: usize) -> TetMesh {
+    let (n_t, n_r, n_z) = wall_cells(r, level);
+    let m = mesh::tube_sector(r.inner_radius, r.outer_radius, r.length, r.sector_angle, n_t, n_r, n_z);
+    let rot = nalgebra::Rotation3::from_axis_angle(&Vec3::z_axis(), -0.5 * r.sector_angle);
+    TetMesh {
+        nodes: m.nodes.iter().map(|x| rot * x).collect(),
+        tets: m.tets,
+    }
+}
+
+/// Inner-wall nodes of `mesh` inside the punch footprint:
+/// `y^2 + (z - length/2)^2 <= r_p^2 (1 + FOOTPRINT_TOL)`, ascending.
+pub fn wall_footprint(r: &WallReference, mesh: &TetMesh) -> Vec<usize> {
+    let zc = 0.5 * r.length;
+    let rp2 = r.punch_radius * r.punch_radius * (1.0 + FOOTPRINT_TOL);
+    mesh::nodes_on_cylinder(mesh, r.inner_radius, 1e-9 * r.outer_radius)
+        .into_iter()
+        .filter(|&i| {
+            let x = mesh.nodes[i];
+            x.y * x.y + (x.z - zc) * (x.z - zc) <= rp2
+        })
+        .collect()
+}
+
+/// Clamped nodes of the wall: both ends (`z = 0, length`) and both straight
+/// edges (`|theta| = angle/2`), ascending.
+pub fn wall_clamped(r: &WallReference, mesh: &TetMesh) -> Vec<usize> {
+    let tol = 1e-9 * r.outer_radius;
+    let half = 0.5 * r.sector_angle - 1e-9;
+    mesh::nodes_where(mesh, |x| {
+        x.z.abs() <= tol || (x.z - r.length).abs() <= tol || x.y.atan2(x.x).abs() >= half
+    })
+}
+
+/// A catheter tip indenting a vessel-wall segment.
+///
+/// The catheter tip is a sphere, whose contact footprint grows with
+/// the depth; that needs unilateral contact between a rigid body and the
+/// tissue, which the tissue contract ([`TissueBody`]) does not have yet (a
+/// follow-up). This scene is the footprint-sized stand-in the contract can
+/// express: a rigid flat-ended circular punch of the catheter's radius,
+/// bonded to the inner wall (every component of the footprint nodes is
+/// prescribed) and pushed radially outward (`+x`) by `depth`.
+///
+/// Geometry and material (from the reference's `meta.toml`): inner radius
+/// 4 mm and wall thickness 1 mm (carotid / femoral artery size), a 120 deg
+/// sector 8 mm long, so the punch rim is about 3 wall thicknesses from every
+/// clamped boundary; punch radius 1 mm (a 6F catheter is 2 mm across);
+/// `E = 1 MPa`, `nu = 0.45`, the order of magnitude of the small-strain
+/// modulus of the arterial wall (Holzapfel, Gasser & Ogden 2000, J.
+/// Elasticity 61; nearly incompressible), density 1060 kg/m^3.
+///
+/// Scores: the punch force at the final depth against the reference
+/// (`force_error_rel`, primary), the force along the ramp against the linear
+/// reference curve `F_ref s(t)` at every step's load factor `s(t)`
+/// (`force_curve_error_rel`: RMS error over RMS reference force,
+/// accumulated in [`ScenarioRun::observe_step`]; equals the force error for
+/// a linear quasi-static model) and the radial displacement of the inner
+/// wall along the axial line through the punch centre, outside the footprint
+/// (`surface_error_rel`: RMS error over RMS reference displacement).
+pub struct WallIndentation;
+
+/// Geometry, `E`'s reference value and `nu` come from the reference; the
+/// depth is bounded by the reference's curve (20 % of the wall thickness).
+const WALL_PARAMS: &[ParamSpec] = &[
+    p(
+        "depth",
+        5e-5,
+        "m",
+        Range::Positive,
+        "punch displacement into the wall at the end of the ramp, <= 2e-4 (20 % of the 1 mm wall, the reference's range)",
+    ),
+    p(
+        "youngs_modulus",
+        1e6,
+        "Pa",
+        Range::Positive,
+        "Young's modulus (arterial wall order of magnitude, Holzapfel et al. 2000)",
+    ),
+    p(
+        "density",
+        1060.0,
+        "kg/m^3",
+        Range::Positive,
+        "density of the vessel wall",
+    ),
+    RAMP,
+    DURATION,
+    p(
+        "settle_tol",
+        2e-6,
+        "m/s",
+        Range::Positive,
+        "static equilibrium when every node is slower than this (after the ramp; ~1 % of the ramp's mean speed at the default depth)",
+    ),
+];
+
+/// Force-along-the-ramp statistics of one run (deduplicated by time).
+#[derive(Debug, Clone, Default)]
+struct CurveTrack {
+    last_t: Option<f64>,
+    /// Sum of `(F - F_ref s)^2` over the steps (N^2).
+    err2: f64,
+    /// Sum of `(F_ref s)^2` over the same steps (N^2).
+    ref2: f64,
+}
+
+struct WallRun {
+    scene: Scene,
+    mesh: TetMesh,
+    depth: f64,
+    force_ref: f64,
+    /// `(containing tet, weights, reference u_r)` of each profile probe (m).
+    probes: Vec<(usize, [f64; 4], f64)>,
+    length: f64,
+    track: Mutex<CurveTrack>,
+}
+
+impl WallRun {
+    /// Indentation force (N): the body pushes the punch back along `-x`.
+    fn force(obs: &Observation) -> f64 {
+        -obs.hand_force.x
+    }
+}
+
+impl ScenarioRun for WallRun {
+    fn scene(&self) -> &Scene {
+        &self.scene
+    }
+    fn score(&self, obs: &Observation) -> BTreeMap<String, f64> {
+        let mut m = BTreeMap::new();
+        let Some(t) = tissue_of(obs, &self.mesh) else {
+            return m;
+        };
+        let f = Self::force(obs);
+        m.insert("reaction_force_n".into(), f);
+        m.insert("reference_force_n".into(), self.force_ref);
+        m.insert("force_error_rel".into(), (f - self.force_ref).abs() / self.force_ref);
+        m.insert("force_ratio".into(), f / self.force_ref);
+        m.insert("stiffness_n_per_m".into(), f / self.depth);
+        m.insert("lateral_force_rel".into(), obs.hand_force.yz().norm() / self.force_ref);
+        let (mut e2, mut r2, mut emax) = (0.0, 0.0, 0.0f64);
+        for (e, w, want) in &self.probes {
+            let tet = self.mesh.tets[*e];
+            let u: Vec3 = (0..4).map(|k| (t.nodes[tet[k]] - self.mesh.nodes[tet[k]]) * w[k]).sum();
+            // On theta = 0 the radial direction is +x.
+            let d = u.x - want;
+            e2 += d * d;
+            r2 += want * want;
+            emax = emax.max(d.abs());
+        }
+        if r2 > 0.0 {
+            m.insert("surface_error_rel".into(), (e2 / r2).sqrt());
+            m.insert("surface_error_max_rel".into(), emax / self.depth);
+        }
+        let c = self.track.lock().unwrap_or_else(|e| e.into_inner());
+        if c.ref2 > 0.0 {
+            m.insert("force_curve_error_rel".into(), (c.err2 / c.ref2).sqrt());
+        }
+        drop(c);
+        common_metrics(&mut m, &self.mesh, t);
+        m
+    }
+    fn observe_step(&self, obs: &Observation) {
+        let s = self.scene.control.command_at(obs.time).insertion;
+        let mut c = self.track.lock().unwrap_or_else(|e| e.into_inner());
+        match c.last_t {
+            Some(t) if obs.time < t => *c = CurveTrack::default(),
+            Some(t) if obs.time == t => return,
+            _ => {}
+        }
+        c.last_t = Some(obs.time);
+        // Linear reference: F(t) = F_ref s(t) at load factor s(t).
+        let want = self.force_ref * s;
+        c.err2 += (Self::force(obs) - want).powi(2);
+        c.ref2 += want * want;
+    }
+    fn energy_scale(&self) -> f64 {
+        // Twice the linear work F d / 2.
+        self.force_ref * self.depth
+    }
+    fn length_scale(&self) -> f64 {
+        self.length
+    }
+}
+
+impl Scenario for WallIndentation {
+    fn id(&self) -> &'static str {
+        "wall-indentation"
+    }
+    fn description(&self) -> &'static str {
+        "vessel-wall sector (r 4-5 mm) indented by a 1 mm catheter-tip punch BONDED to the inner wall (stand-in for a sphere: no tissue contact yet): force, deformed surface"
+    }
+    fn family(&self) -> Family {
+        Family::Tissue
+    }
+    fn params(&self) -> &'static [ParamSpec] {
+        WALL_PARAMS
+    }
+    fn reference(&self) -> &'static str {
+        "scikit-fem P2, LINEAR elasticity, bonded flat punch (datasets/reference/wall-indentation); the issue's sphere needs unilateral contact the tissue contract lacks"
+    }
+    fn primary_error(&self) -> &'static str {
+        "force_error_rel"
+    }
+    fn sweep(&self) -> Vec<Fidelity> {
+        level_sweep()
+    }
+    fn instantiate(&self, p: &Params) -> Result<Box<dyn ScenarioRun>, UsageError> {
+        self.instantiate_at(p, &Fidelity::default())
+    }
+    fn instantiate_at(&self, p: &Params, fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
+        let level = mesh_level(self.id(), fidelity)?;
+        let r = WallReference::load(&datasets_dir())?;
+        let (depth, e) = (p.get("depth"), p.get("youngs_modulus"));
+        let force_ref = r.force(depth, e).filter(|f| *f > 0.0).ok_or_else(|| {
+            UsageError(format!(
+                "wall-indentation: depth {depth} m is outside the reference's (0, {}] m",
+                r.max_depth()
+            ))
+        })?;
+        let mesh = wall_mesh(&r, level);
+        let foot = wall_footprint(&r, &mesh);
+        if foot.is_empty() {
+            return Err(UsageError(format!(
+                "wall-indentation: no node of mesh level {level} lies in the punch footprint"
+            )));
+        }
+        let mut body = TissueBody::new(mesh.clone(), material(p, r.poisson_ratio));
+        body.fixed_nodes = wall_clamped(&r, &mesh);
+        body.driven_nodes = foot.into_iter().map(|i| (i, Vec3::new(depth, 0.0, 0.0))).collect();
+        // Profile probes strictly between the clamped ends and outside the
+        // footprint: inside it every model is driven exactly.
+        let zc = 0.5 * r.length;
+        let probes = r
+            .profile
+            .iter()
+            .filter(|(z, _)| *z > 0.0 && *z < r.length && (z - zc).abs() > r.punch_radius * (1.0 + FOOTPRINT_TOL))
+            .map(|&(z, u)| {
+                let (e, w) = locate(&mesh, &Vec3::new(r.inner_radius, 0.0, z)).expect("wall mesh has tets");
+                (e, w, u * depth)
+            })
+            .collect();
+        Ok(Box::new(WallRun {
+            scene: static_scene(self.id(), body, p)?,
+            mesh,
+            depth,
+            force_ref,
+            probes,
+            length: r.length,
+            track: Mutex::new(CurveTrack::default()),
         }))
     }
 }
