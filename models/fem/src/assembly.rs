@@ -315,20 +315,30 @@ impl System {
         if let Some(c) = &mut self.chol {
             c.valid = false;
         }
-        // Block-Jacobi blocks for CG: diagonal blocks restricted to free DOFs.
-        self.jac.clear();
-        self.jac.reserve(pat.n);
-        for n in 0..pat.n {
-            let mut b = k[pat.diag[n]] * c_k + M3::identity() * (c_m * mass[n]);
-            for i in 0..3 {
-                if !self.free[3 * n + i] {
-                    b.set_row(i, &nalgebra::RowVector3::zeros());
-                    b.set_column(i, &nalgebra::Vector3::zeros());
-                    b[(i, i)] = 1.0;
+        self.set_block_jacobi(pat, k, c_k, mass, c_m);
+    }
+
+    /// Block-Jacobi preconditioner of `c_k K + c_m diag(mass)` for
+    /// [`System::solve_cg`]: the inverse of every node's 3x3 diagonal block
+    /// restricted to its free DOFs (all [`System::set_values`] does for CG).
+    pub fn set_block_jacobi(&mut self, pat: &Pattern, k: &[M3], c_k: f64, mass: &[f64], c_m: f64) {
+        let free = &self.free;
+        self.jac.resize(pat.n, M3::identity());
+        self.jac
+            .par_iter_mut()
+            .with_min_len(256)
+            .enumerate()
+            .for_each(|(n, out)| {
+                let mut b = k[pat.diag[n]] * c_k + M3::identity() * (c_m * mass[n]);
+                for i in 0..3 {
+                    if !free[3 * n + i] {
+                        b.set_row(i, &nalgebra::RowVector3::zeros());
+                        b.set_column(i, &nalgebra::Vector3::zeros());
+                        b[(i, i)] = 1.0;
+                    }
                 }
-            }
-            self.jac.push(b.try_inverse().unwrap_or_else(M3::identity));
-        }
+                *out = b.try_inverse().unwrap_or_else(M3::identity);
+            });
     }
 
     /// Whether a valid numeric factorization is cached.

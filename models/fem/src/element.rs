@@ -130,10 +130,24 @@ impl Elements {
     }
 }
 
-/// Warp rest stiffness blocks by `R`: `K_ab = R K0_ab R^T`.
+/// Warp rest stiffness blocks by `R`: `K_ab = R K0_ab R^T`. `K0` is
+/// symmetric (`K0_ba = K0_ab^T`), so only the 10 blocks with `a <= b` are
+/// computed and the others mirrored: the result is exactly symmetric.
 pub fn warp(k0: &ElemBlocks, r: &M3) -> ElemBlocks {
     let rt = r.transpose();
-    k0.map(|b| r * b * rt)
+    let mut out = [M3::zeros(); 16];
+    for a in 0..4 {
+        for b in a..4 {
+            let k = r * k0[4 * a + b] * rt;
+            out[4 * a + b] = k;
+            if b != a {
+                out[4 * b + a] = k.transpose();
+            } else {
+                out[4 * a + a] = (k + k.transpose()) * 0.5;
+            }
+        }
+    }
+    out
 }
 
 /// Clamp the negative eigenvalues of a 12x12 element matrix to zero.

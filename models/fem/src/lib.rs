@@ -5,7 +5,8 @@
 //! neo-Hookean), lumped mass, Rayleigh damping, implicit Newmark
 //! (`beta = 1/4, gamma = 1/2`) and backward Euler time stepping with a fixed
 //! number of Newton iterations per step, and quasi-static solves (full
-//! Newton, load stepping) through [`solve_static`]. Linear systems go to
+//! Newton, load stepping; the harness model halves a failing load increment
+//! up to six times) through [`solve_static`]. Linear systems go to
 //! faer's sparse Cholesky (symbolic analysis once, numeric factorization
 //! reused while the matrix is unchanged) or to a block-Jacobi preconditioned
 //! conjugate gradient. Assembly runs on a private rayon pool and is

