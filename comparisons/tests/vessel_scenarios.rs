@@ -671,7 +671,10 @@ fn flow_drift_needs_flow_and_scores_drift() {
     let e = &sum.errors;
     assert!((e["tip_drift_m"] - l * 0.5).abs() < 1e-15, "drift {}", e["tip_drift_m"]);
     assert!((e["tip_wall_gap_m"] - (3e-3 - l - WIRE_RADIUS)).abs() < 1e-15);
-    assert_eq!(e["reference_available"], 1.0, "the DER reference (datasets/reference/flow-drift) is committed");
+    assert_eq!(
+        e["reference_available"], 1.0,
+        "the DER reference (datasets/reference/flow-drift) is committed"
+    );
     assert_eq!(sum.end, "settled", "a motionless wire settles");
 }
 

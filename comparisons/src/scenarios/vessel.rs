@@ -842,8 +842,11 @@ impl Scenario for BranchSelection {
 // ---------------------------------------------------------------------------
 
 /// A short soft wire tip in Poiseuille flow, clamped on the tube axis and
-/// tilted upstream: the flow swings it downstream against the wall, where
-/// friction stops it.
+/// tilted upstream: the flow swings it downstream towards the wall (130 um
+/// from the tip), where friction would stop it. Whether it gets there
+/// depends on the model's flow law: DER's quadratic drag (Re ~ 135 here)
+/// deflects the default 2.8 mm, 1 MPa tip by ~10 um (DER's reference
+/// trajectory says so); the chain-mail rule moves elements with the blood.
 pub struct FlowDrift {
     /// Datasets folder holding `reference/flow-drift/tip_trajectory.csv`
     /// (`None`: [`datasets_dir`]).
@@ -965,7 +968,7 @@ impl Scenario for FlowDrift {
         "flow-drift"
     }
     fn description(&self) -> &'static str {
-        "soft wire tip swung downstream by Poiseuille flow until it rests on the wall by friction"
+        "soft wire tip tilted upstream in Poiseuille flow: how far the flow swings it towards the wall (130 um away); a drag law at Re ~ 135 moves it ~10 um, a displacement rule may carry it onto the wall, where friction holds it"
     }
     fn family(&self) -> Family {
         Family::Rod
