@@ -186,18 +186,42 @@ impl RodSettings {
     }
 }
 
-/// A vessel-wall contact of one particle, linearised at the start of a substep
-/// (plane constraint of Macklin et al. 2014, "Unified Particle Physics for
-/// Real-Time Applications", sec. 5-6).
+/// A vessel-wall contact of one particle (plane constraint of Macklin et al.
+/// 2014, "Unified Particle Physics for Real-Time Applications", sec. 5-6).
+///
+/// A particle near the wall at the start of a substep is a candidate; its
+/// plane is linearised where the particle first reaches the wall (`phi + r +
+/// margin >= 0`), at the prediction or during the solve, and then kept for
+/// the substep. Linearising at a point still deep in the lumen would take
+/// the normal where the SDF gradient may be ill-defined (on a tube's axis
+/// it is zero, and a rounding-level offset turns it in an arbitrary
+/// direction, so the answer would depend on the frame).
 #[derive(Debug, Clone, Copy)]
 struct Contact {
     i: usize,
+    /// Whether the plane below is set (the particle reached the wall).
+    live: bool,
     normal: Vec3,
     /// Signed gap function at `x_ref`: `phi + r + margin` (> 0 = violating).
     d0: f64,
     x_ref: Vec3,
     /// Accumulated correction this substep (m).
     dx: Vec3,
+}
+
+impl Contact {
+    /// Set the plane from a query at `x_ref` (gap `d0`, SDF gradient `g`)
+    /// if the particle is on or past the wall there and the gradient is
+    /// defined; returns whether the contact is live.
+    fn linearise(&mut self, d0: f64, g: &Vec3) -> bool {
+        let gn = g.norm();
+        if d0 >= 0.0 && gn > 0.0 {
+            self.live = true;
+            self.normal = g / gn;
+            self.d0 = d0;
+        }
+        self.live
+    }
 }
 
 /// The Cosserat-PBD rod model. Build it through [`PbdRodFactory`] or
@@ -609,12 +633,14 @@ impl PbdRod {
         }
     }
 
-    /// Linearise the vessel wall at every particle near it. One
-    /// `distance_gradient` query per particle and substep at most, and none
-    /// for a particle provably deep in the lumen: a signed distance field
-    /// changes by at most `L |dx|` when the point moves by `dx`
-    /// ([`SDF_LIPSCHITZ_BOUND`]), so the cached `phi` plus `L` times the
-    /// distance moved since that query bounds `phi` from above.
+    /// Find the particles near the vessel wall and linearise the wall at
+    /// those already on or past it ([`Contact`]). One `distance_gradient`
+    /// query per particle at the prediction, none for a particle provably
+    /// deep in the lumen: a signed distance field changes by at most `L |dx|`
+    /// when the point moves by `dx` ([`SDF_LIPSCHITZ_BOUND`]), so the cached
+    /// `phi` plus `L` times the distance moved since that query bounds `phi`
+    /// from above. The same bound gates the re-queries of candidates during
+    /// the solve ([`Self::solve_contacts`]).
     fn detect_contacts(&mut self) {
         self.contacts.clear();
         let Some(sdf) = &self.vessel else { return };
@@ -630,16 +656,16 @@ impl PbdRod {
             self.sdf_cache[i] = (xi, phi);
             let d0 = phi + r + self.margin;
             if d0 > -band {
-                let gn = g.norm();
-                if gn > 0.0 {
-                    self.contacts.push(Contact {
-                        i,
-                        normal: g / gn,
-                        d0,
-                        x_ref: xi,
-                        dx: Vec3::zeros(),
-                    });
-                }
+                let mut c = Contact {
+                    i,
+                    live: false,
+                    normal: Vec3::zeros(),
+                    d0,
+                    x_ref: xi,
+                    dx: Vec3::zeros(),
+                };
+                c.linearise(d0, &g);
+                self.contacts.push(c);
             }
         }
     }
@@ -743,9 +769,28 @@ impl PbdRod {
 
     /// Contact plane constraints with position-level Coulomb friction
     /// (Macklin et al. 2014, sec. 6.1, eqs. 24-25).
+    /// One projection of every live contact, with Coulomb friction; a
+    /// candidate that may have reached the wall since its last query (the
+    /// Lipschitz bound of [`Self::detect_contacts`]) is queried again at its
+    /// current position and goes live there if it has.
     fn solve_contacts(&mut self) {
         for c in &mut self.contacts {
             let i = c.i;
+            if !c.live {
+                let Some(sdf) = &self.vessel else { continue };
+                let xi = self.x[i];
+                let r = self.radius_node[i];
+                let (xc, phic) = self.sdf_cache[i];
+                if phic + SDF_LIPSCHITZ_BOUND * (xi - xc).norm() + r + self.margin < 0.0 {
+                    continue;
+                }
+                let (phi, g) = sdf.distance_gradient(&xi);
+                self.sdf_cache[i] = (xi, phi);
+                c.x_ref = xi;
+                if !c.linearise(phi + r + self.margin, &g) {
+                    continue;
+                }
+            }
             let d = c.d0 + c.normal.dot(&(self.x[i] - c.x_ref));
             if d <= 0.0 {
                 continue;

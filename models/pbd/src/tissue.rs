@@ -25,6 +25,16 @@
 //! measure. `nu -> 1/2` makes the volume constraint hard; `nu = 0` drops it;
 //! `nu < 0` (negative `lambda`) is unsupported.
 //!
+//! **Hand force**: the reaction on the driven nodes is minus the gradient of
+//! the constraint energy `sum C^2 / (2 alpha)` at the current positions
+//! (plus the driven nodes' weight). XPBD's own estimate
+//! `sum grad C lambda / h^2` (kept as [`PbdTissue::multiplier_hand_force`])
+//! equals it only when the substep's solve converged: the multipliers
+//! restart from zero every substep, and on a stiff mesh (`k h^2 / m >> 1`)
+//! a few Gauss-Seidel iterations leave them far short (wall-indentation at
+//! mesh level 1, 10 iterations: 0.004 of the reference force from the
+//! multipliers, 0.11 from the energy gradient).
+//!
 //! **Solve order and threads** ([`crate::color`]): the constraints are cut
 //! into blocks of breadth-first node levels coloured alternately, so that the
 //! blocks of one colour share no node; each iteration projects the blocks of
@@ -490,6 +500,8 @@ pub struct PbdTissue {
     last_ins: f64,
     cur_ins: f64,
     hand_force: Vec3,
+    /// Hand force from the multipliers (N), see [`PbdTissue::multiplier_hand_force`].
+    multiplier_force: Vec3,
     residual: f64,
     projections: u64,
     scale: f64,
@@ -659,6 +671,7 @@ impl PbdTissue {
             last_ins: 0.0,
             cur_ins: 0.0,
             hand_force: Vec3::zeros(),
+            multiplier_force: Vec3::zeros(),
             residual: 0.0,
             projections: 0,
             scale: (hi - lo).norm(),
@@ -860,8 +873,18 @@ impl PbdTissue {
             let i = i as usize;
             self.v[i] = (self.x[i] - self.x_prev[i]) / h;
         }
-        // Reaction on the driven nodes: sum of grad C lambda / h^2 of the
-        // constraints acting on them, plus their weight.
+        let weight: Vec3 = self.driven.iter().map(|(i, _)| self.gravity * self.mass[*i]).sum();
+        self.multiplier_force = self.reaction_from_multipliers(h2) + weight;
+        self.hand_force = self.reaction_from_energy(h2) + weight;
+    }
+
+    /// Reaction of the active constraints on the driven nodes from this
+    /// substep's multipliers, `sum_j grad C_j lambda_j / h^2` (N; Macklin et
+    /// al. 2016, eq. 9 with `f = grad C^T lambda / h^2`). Equals the elastic
+    /// force only when the substep's solve converged (`C + alpha~ lambda = 0`);
+    /// the multipliers restart from zero each substep, so a stiff mesh solved
+    /// by a few iterations leaves them far short of it.
+    fn reaction_from_multipliers(&self, h2: f64) -> Vec3 {
         let mut f = Vec3::zeros();
         for &e in &self.driven_edges {
             let e = e as usize;
@@ -890,8 +913,76 @@ impl PbdTissue {
                 }
             }
         }
-        let weight: Vec3 = self.driven.iter().map(|(i, _)| self.gravity * self.mass[*i]).sum();
-        self.hand_force = f / h2 + weight;
+        f / h2
+    }
+
+    /// Reaction of the active constraints on the driven nodes at the current
+    /// positions: minus the gradient of the constraint energy
+    /// `U = sum_j C_j^2 / (2 alpha_j)` with respect to the driven nodes,
+    /// `-sum_j grad C_j C_j / alpha_j` (N). This is the force the model's
+    /// elastic potential exerts in the configuration it reports, whether or
+    /// not the last solve converged; at convergence it equals
+    /// [`Self::reaction_from_multipliers`] (`lambda_j / h^2 = -C_j / alpha_j`,
+    /// Macklin et al. 2016, eq. 18 at its fixed point). Hard constraints
+    /// (`alpha = 0`, `nu = 1/2`) have no energy and keep their multiplier force.
+    fn reaction_from_energy(&self, h2: f64) -> Vec3 {
+        let mut f = Vec3::zeros();
+        for &e in &self.driven_edges {
+            let e = e as usize;
+            if !self.active.edge_on[e] {
+                continue;
+            }
+            let [a, b] = self.edges[e].map(|i| i as usize);
+            let d = self.x[b] - self.x[a];
+            let len = d.norm();
+            if len == 0.0 {
+                continue;
+            }
+            let n = d / len;
+            let alpha = self.edge_alpha[e];
+            // Force along +grad C (as lambda / h^2 would be).
+            let s = if alpha > 0.0 {
+                -(len - self.edge_rest[e]) / alpha
+            } else {
+                self.lambda_e[e] / h2
+            };
+            if self.driven_mark[a] {
+                f -= n * s;
+            }
+            if self.driven_mark[b] {
+                f += n * s;
+            }
+        }
+        for &t in &self.driven_tets {
+            let t = t as usize;
+            let alpha = self.tet_alpha[t];
+            if !self.active.tet_on[t] || !alpha.is_finite() {
+                continue;
+            }
+            let idx = self.tets[t].map(|i| i as usize);
+            let p = idx.map(|i| self.x[i]);
+            let g = tet_volume_gradients(&p);
+            let s = if alpha > 0.0 {
+                -(tet_volume(&p) - self.tet_rest[t]) / alpha
+            } else {
+                self.lambda_t[t] / h2
+            };
+            for k in 0..4 {
+                if self.driven_mark[idx[k]] {
+                    f += g[k] * s;
+                }
+            }
+        }
+        f
+    }
+
+    /// Reaction on the driven nodes (N) estimated from the last substep's
+    /// XPBD multipliers plus the driven nodes' weight; the observed
+    /// `hand_force` uses the constraint energy's gradient instead (see the
+    /// module docs). The two agree when the solve converged; their gap
+    /// measures how far it is from converged.
+    pub fn multiplier_hand_force(&self) -> Vec3 {
+        self.multiplier_force
     }
 
     /// Collide point-like bodies (e.g. catheter particles) with `ghost`, the
