@@ -292,3 +292,19 @@ fn haptic_loops_land_in_the_report() {
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
     assert!(md.contains("## Haptic loop") && md.contains("of 200 ("), "{md}");
 }
+
+/// `list` names every comparison file and none is unreadable (the crate
+/// manifest that shares the folder is not one).
+#[test]
+fn list_shows_the_comparisons_and_nothing_unreadable() {
+    let o = surgbench(&["list"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    for name in ["standard", "tissue", "navigation"] {
+        assert!(
+            out.contains(&format!("  {name} ")),
+            "`list` lacks comparison {name}: {out}"
+        );
+    }
+    assert!(!out.contains("unreadable") && !out.contains("  Cargo "), "{out}");
+}
