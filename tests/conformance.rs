@@ -7,6 +7,7 @@
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use surgbench_comparisons::registry;
 use surgbench_comparisons::scenario::Params;
+use surgbench_core::rng::SplitMix64 as Rng;
 use surgbench_core::{
     Body, BuildError, Capability, Fidelity, ModelFactory, Observation, RodBody, Scene, SolidMaterial, TetMesh,
     TissueBody, Vec3,
@@ -15,14 +16,23 @@ use surgbench_core::{
 /// Steps every conformance run takes: enough to leave the rest state.
 const STEPS: usize = 20;
 
-/// Each supported scenario at default parameters, coarse fidelity.
+/// Each supported scenario at default parameters, coarse fidelity. Tip
+/// loads that a scene ramps up later (capstan: once threaded) are applied in
+/// full from the start here, so the few conformance steps run the loaded
+/// contact path rather than an unloaded wire.
 fn supported(f: &dyn ModelFactory) -> Vec<(String, Scene)> {
     let mut v = Vec::new();
     for sc in registry::scenarios() {
         let p = Params::resolve(sc.id(), sc.params(), &[]).unwrap();
         let run = sc.instantiate(&p).unwrap();
-        if f.check(run.scene()).is_ok() {
-            v.push((sc.id().to_string(), run.scene().clone()));
+        let mut scene = run.scene().clone();
+        for b in &mut scene.bodies {
+            if let Body::Rod(r) = b {
+                r.tip_load_ramp = None;
+            }
+        }
+        if f.check(&scene).is_ok() {
+            v.push((sc.id().to_string(), scene));
         }
     }
     v
@@ -237,18 +247,6 @@ fn rigid_motion_of_the_scene_moves_the_answer_rigidly() {
     }
 }
 
-/// A tiny splitmix64 generator: explicit seed, no dependency.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
 #[test]
 fn forces_are_minus_the_energy_gradient() {
     let mut checked = 0;
@@ -269,7 +267,7 @@ fn forces_are_minus_the_energy_gradient() {
             let mut q0 = probe.coords();
             let amp = 1e-3 * q0.iter().map(|x| x.abs()).fold(0.0, f64::max).max(1e-6);
             for &i in &probe.free() {
-                q0[i] += amp * (rng.next() - 0.5);
+                q0[i] += amp * (rng.unit() - 0.5);
             }
             probe.set_coords(&q0);
             let q0 = probe.coords();
@@ -278,7 +276,7 @@ fn forces_are_minus_the_energy_gradient() {
             let scale = forces.iter().map(|f| f.abs()).fold(0.0, f64::max).max(1e-300);
             // Up to 24 free coordinates picked with a seeded generator.
             let picks: Vec<usize> = (0..24.min(free.len()))
-                .map(|_| free[(rng.next() * free.len() as f64) as usize])
+                .map(|_| free[(rng.unit() * free.len() as f64) as usize])
                 .collect();
             for &i in &picks {
                 let h = 1e-6 * q0[i].abs().max(1e-3);

@@ -12,7 +12,7 @@ use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
-use surgbench_core::{BuildError, DeviceCommand, Fidelity, Iso3, ModelFactory, Observation, Scene, Vec3};
+use surgbench_core::{BuildError, DeviceCommand, Fidelity, Iso3, ModelFactory, Observation, RodBody, Scene, Vec3};
 
 /// A run cannot count as settled before this many steps: a model at rest
 /// before the load acts must not pass for one at equilibrium.
@@ -151,10 +151,17 @@ pub fn peak_rss_mb() -> Option<f64> {
 /// `d insertion * d`. Scenes where the clamp motion is not one rigid motion
 /// (several driven bodies, non-uniform driven displacements) are not
 /// accounted (`None`): their watchdog sees the raw energy growth.
+///
+/// A rod whose tip force follows a `LoadRamp` changes its dead-load
+/// potential `V = -s(t) F . x_tip` while the tip stands still; that energy,
+/// `-int s'(t) F . x_tip dt`, is counted here too (trapezoidal in `x_tip`).
+/// A ramped tip torque has no potential the models report and is not counted.
 #[derive(Debug, Clone)]
 pub struct HandWork {
     drive: Drive,
     last: Option<(Vec3, UnitQuaternion<f64>, Vec3, Vec3)>,
+    /// The one rod's ramped tip load and its last (scale, tip position).
+    ramp: Option<(RodBody, Option<(f64, Vec3)>)>,
     /// Work done so far (J).
     pub work: f64,
 }
@@ -187,9 +194,14 @@ impl HandWork {
             }
             _ => Drive::Unknown,
         };
+        let ramp = match rods.as_slice() {
+            [rod] if rod.tip_load_ramp.is_some() && rod.tip_force != Vec3::zeros() => Some(((*rod).clone(), None)),
+            _ => None,
+        };
         Self {
             drive,
             last: None,
+            ramp,
             work: 0.0,
         }
     }
@@ -211,6 +223,13 @@ impl HandWork {
     /// Account for the step that ended with `cmd` applied and `obs` observed
     /// (call once with the initial command and observation first).
     pub fn record(&mut self, cmd: &DeviceCommand, obs: &Observation) {
+        if let (Some((rod, last)), Some(tip)) = (&mut self.ramp, obs.rods.first().map(|r| r.tip())) {
+            let s = rod.tip_load_scale(obs.time);
+            if let Some((s0, tip0)) = *last {
+                self.work -= (s - s0) * rod.tip_force.dot(&(0.5 * (tip + tip0)));
+            }
+            *last = Some((s, tip));
+        }
         let Some((x, q)) = self.clamp(cmd) else {
             return;
         };
@@ -579,6 +598,47 @@ mod tests {
         assert!(
             (hand.work - exact).abs() <= 1e-12 * exact,
             "hand work {} J vs exact {exact} J",
+            hand.work
+        );
+    }
+
+    /// A tip held by a linear spring (`k`, N/m) to the origin under a tip
+    /// force ramped from 0 to `F`: quasi-statically `x = s F / k`, and the
+    /// energy `k x^2 / 2 - s F . x` falls by `F^2 / (2k)`, all of it the
+    /// load change's work `-int s' F . x dt` (exact for the trapezoidal rule
+    /// because x is linear in s, so the tolerance is rounding). The clamp
+    /// holds still, so the hand itself does nothing.
+    #[test]
+    fn ramped_tip_load_work_is_counted() {
+        let (k, f) = (40.0, Vec3::new(0.3, -0.2, 0.5));
+        let mut rod = RodBody::uniform(0.1, 1e-3, 1e9, 0.3, 1000.0);
+        rod.tip_force = f;
+        rod.tip_load_ramp = Some(surgbench_core::LoadRamp::linear(0.1, 0.6));
+        let mut scene = Scene::empty("ramp");
+        scene.bodies.push(rod.clone().into());
+        let mut hand = HandWork::new(&scene);
+        let energy = |x: Vec3, s: f64| 0.5 * k * x.norm_squared() - s * f.dot(&x);
+        let x_at = |t: f64| rod.tip_force_at(t) / k;
+        for i in 0..=80 {
+            let t = i as f64 * 0.01;
+            let obs = Observation {
+                time: t,
+                rods: vec![surgbench_core::RodObs {
+                    nodes: vec![Vec3::zeros(), x_at(t)],
+                    ..Default::default()
+                }],
+                ..Default::default()
+            };
+            hand.record(&DeviceCommand::default(), &obs);
+        }
+        let de = energy(x_at(0.8), 1.0) - energy(x_at(0.0), 0.0);
+        assert!(
+            (de + f.norm_squared() / (2.0 * k)).abs() <= 1e-12,
+            "closed form: energy change {de} J"
+        );
+        assert!(
+            (hand.work - de).abs() <= 1e-12 * de.abs(),
+            "ramp work {} J vs energy change {de} J",
             hand.work
         );
     }

@@ -203,16 +203,15 @@ pub trait Scenario: Send + Sync {
         let s = self.sweep();
         s.into_iter().take(3).collect()
     }
-    /// Validate parameters, build the scene and compute the reference.
-    fn instantiate(&self, params: &Params) -> Result<Box<dyn ScenarioRun>, UsageError>;
+    /// Validate parameters, build the scene and compute the reference for a
+    /// requested fidelity: the harness always calls this one. Scenarios
+    /// whose geometry depends on a fidelity knob (tissue meshes built at
+    /// `mesh_level`) read it; the others ignore it.
+    fn instantiate_at(&self, params: &Params, fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError>;
 
-    /// Instantiate for a requested fidelity. Scenarios whose geometry
-    /// depends on a fidelity knob (tissue meshes built at `mesh_level`)
-    /// override this; the default ignores the fidelity. The harness always
-    /// calls this one.
-    fn instantiate_at(&self, params: &Params, fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        let _ = fidelity;
-        self.instantiate(params)
+    /// [`Scenario::instantiate_at`] at the default fidelity.
+    fn instantiate(&self, params: &Params) -> Result<Box<dyn ScenarioRun>, UsageError> {
+        self.instantiate_at(params, &Fidelity::default())
     }
 }
 

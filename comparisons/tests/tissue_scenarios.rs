@@ -16,22 +16,8 @@ use surgbench_comparisons::scenarios::tissue::{
 };
 use surgbench_comparisons::scenarios::vessel::datasets_dir;
 use surgbench_core::mesh::{self, truth_cube};
+use surgbench_core::rng::SplitMix64;
 use surgbench_core::{Capability, Family, Fidelity, Mat3, Observation, TetMesh, TissueBody, TissueObs, Vec3};
-
-/// splitmix64: deterministic test inputs without a dependency.
-struct SplitMix(u64);
-
-impl SplitMix {
-    /// Uniform in [0, 1).
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        (z >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
 
 fn params(sc: &dyn Scenario, overrides: &[(&str, f64)]) -> Params {
     let o: Vec<(String, f64)> = overrides.iter().map(|(k, v)| (k.to_string(), *v)).collect();
@@ -543,9 +529,9 @@ fn truth_cube_frame_puts_the_loaded_face_on_top() {
 #[test]
 fn locate_returns_barycentric_weights_that_reproduce_the_point() {
     let m = mesh::block(Vec3::new(0.08, 0.08, 0.08), [4, 4, 4]);
-    let mut rng = SplitMix(7);
+    let mut rng = SplitMix64(7);
     for _ in 0..200 {
-        let p = Vec3::new(rng.next(), rng.next(), rng.next()) * 0.08;
+        let p = Vec3::new(rng.unit(), rng.unit(), rng.unit()) * 0.08;
         let (e, w) = tissue::locate(&m, &p).unwrap();
         let q: Vec3 = (0..4).map(|k| m.nodes[m.tets[e][k]] * w[k]).sum();
         // Weights from a 3x3 solve on cells of 2 cm: 1e-15 m of round-off.

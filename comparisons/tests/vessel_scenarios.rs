@@ -90,6 +90,7 @@ const ALL_ROD_CAPS: &[Capability] = &[
     Capability::Rod,
     Capability::Twist,
     Capability::TipForce,
+    Capability::LoadRamp,
     Capability::VaryingProperties,
     Capability::RestCurvature,
     Capability::Insertion,
@@ -133,7 +134,10 @@ fn every_scene_validates_and_asks_for_its_capabilities() {
             ],
         ),
         ("flow-drift", &[Rod, VesselContact, Friction, Flow]),
-        ("capstan", &[Rod, TipForce, Insertion, VesselContact, Friction]),
+        (
+            "capstan",
+            &[Rod, TipForce, LoadRamp, Insertion, VesselContact, Friction],
+        ),
         ("stick-slip-threshold", &[Rod, Insertion, VesselContact, Friction]),
         (
             "coronary-tortuous",

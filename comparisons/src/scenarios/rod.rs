@@ -222,7 +222,7 @@ impl Scenario for CantileverGravity {
     fn sweep(&self) -> Vec<Fidelity> {
         sweep_of("segments", &[10.0, 20.0, 40.0, 80.0])
     }
-    fn instantiate(&self, p: &Params) -> Result<Box<dyn ScenarioRun>, UsageError> {
+    fn instantiate_at(&self, p: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
         let c = RodCase::from(p);
         let g = p.get("gravity");
         let q = c.weight_per_length(g);
@@ -282,7 +282,7 @@ impl Scenario for CantileverTipLoad {
     fn sweep(&self) -> Vec<Fidelity> {
         sweep_of("segments", &[10.0, 20.0, 40.0, 80.0])
     }
-    fn instantiate(&self, p: &Params) -> Result<Box<dyn ScenarioRun>, UsageError> {
+    fn instantiate_at(&self, p: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
         let c = RodCase::from(p);
         let g = p.get("gravity");
         let q = c.weight_per_length(g);
@@ -415,7 +415,7 @@ impl Scenario for TorqueTransfer {
     fn sweep(&self) -> Vec<Fidelity> {
         sweep_of("segments", &[10.0, 20.0, 40.0, 80.0])
     }
-    fn instantiate(&self, p: &Params) -> Result<Box<dyn ScenarioRun>, UsageError> {
+    fn instantiate_at(&self, p: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
         let c = RodCase::from(p);
         let base = p.get("base_twist");
         let torque = p.get("tip_torque");

@@ -427,9 +427,6 @@ impl Scenario for BlockCompression {
     fn sweep(&self) -> Vec<Fidelity> {
         level_sweep()
     }
-    fn instantiate(&self, p: &Params) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        self.instantiate_at(p, &Fidelity::default())
-    }
     fn instantiate_at(&self, p: &Params, fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
         let level = mesh_level(self.id(), fidelity)?;
         let reference = BlockReference::load(&datasets_dir())?;
@@ -596,9 +593,6 @@ impl Scenario for LameTube {
     fn sweep(&self) -> Vec<Fidelity> {
         level_sweep()
     }
-    fn instantiate(&self, p: &Params) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        self.instantiate_at(p, &Fidelity::default())
-    }
     fn instantiate_at(&self, p: &Params, fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
         let level = mesh_level(self.id(), fidelity)?;
         let (a, b, h) = (p.get("inner_radius"), p.get("outer_radius"), p.get("height"));
@@ -754,9 +748,6 @@ impl Scenario for VolumePreservation {
     }
     fn sweep(&self) -> Vec<Fidelity> {
         level_sweep()
-    }
-    fn instantiate(&self, p: &Params) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        self.instantiate_at(p, &Fidelity::default())
     }
     fn instantiate_at(&self, p: &Params, fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
         let level = mesh_level(self.id(), fidelity)?;
@@ -1028,9 +1019,6 @@ impl Scenario for TruthCube {
     }
     fn sweep(&self) -> Vec<Fidelity> {
         level_sweep()
-    }
-    fn instantiate(&self, p: &Params) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        self.instantiate_at(p, &Fidelity::default())
     }
     fn instantiate_at(&self, p: &Params, fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
         let level_f = p.get("strain_level");
@@ -1383,9 +1371,6 @@ impl Scenario for WallIndentation {
     }
     fn sweep(&self) -> Vec<Fidelity> {
         level_sweep()
-    }
-    fn instantiate(&self, p: &Params) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        self.instantiate_at(p, &Fidelity::default())
     }
     fn instantiate_at(&self, p: &Params, fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
         let level = mesh_level(self.id(), fidelity)?;

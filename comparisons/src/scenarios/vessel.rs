@@ -31,8 +31,8 @@ use surgbench_core::haptic::Session;
 use surgbench_core::sdf::{CenterlineBuilder, Sdf, StraightTube, SweptTube};
 use surgbench_core::vessel::{self, PoiseuilleFlow, Vessel};
 use surgbench_core::{
-    ContactParams, ControlKey, ControlTimeline, Family, Fidelity, Iso3, Observation, RodBody, RodSection, Scene,
-    Settle, Vec3,
+    ContactParams, ControlKey, ControlTimeline, Family, Fidelity, Iso3, LoadRamp, Observation, RodBody, RodSection,
+    Scene, Settle, Vec3,
 };
 
 /// Every vessel scenario, in report order.
@@ -163,6 +163,7 @@ impl Wire {
             base,
             tip_force: Vec3::zeros(),
             tip_torque: Vec3::zeros(),
+            tip_load_ramp: None,
         })
     }
     /// [`Wire::rod`] with the last `j_len` m of the soft tip pre-curved to
@@ -601,7 +602,7 @@ impl Scenario for ArchInsertion {
     fn sweep(&self) -> Vec<Fidelity> {
         sweep_of("segments", &[25.0, 50.0, 100.0, 200.0])
     }
-    fn instantiate(&self, p: &Params) -> Result<Box<dyn ScenarioRun>, UsageError> {
+    fn instantiate_at(&self, p: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
         let wire = Wire::from(p);
         check_lumen(wire.radius, vessel::AORTA_RADIUS, "aortic")?;
         let l0 = p.get("initial_length");
@@ -783,7 +784,7 @@ impl Scenario for BranchSelection {
     fn sweep(&self) -> Vec<Fidelity> {
         sweep_of("segments", &[20.0, 40.0, 80.0])
     }
-    fn instantiate(&self, p: &Params) -> Result<Box<dyn ScenarioRun>, UsageError> {
+    fn instantiate_at(&self, p: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
         let wire = Wire::from(p);
         check_lumen(wire.radius, vessel::Y_BRANCH_RADIUS, "branch")?;
         let target = p.get("target");
@@ -985,7 +986,7 @@ impl Scenario for FlowDrift {
     fn sweep(&self) -> Vec<Fidelity> {
         sweep_of("segments", &[5.0, 10.0, 20.0, 40.0])
     }
-    fn instantiate(&self, p: &Params) -> Result<Box<dyn ScenarioRun>, UsageError> {
+    fn instantiate_at(&self, p: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
         let r = p.get("wire_radius");
         let big_r = p.get("tube_radius");
         check_lumen(r, big_r, "tube")?;
@@ -1075,7 +1076,7 @@ const CAPSTAN_PARAMS: &[ParamSpec] = &[
         1.0,
         "N",
         Range::Positive,
-        "dead force on the tip along the exit direction: far-end tension T_in",
+        "dead force on the tip along the exit direction once threaded: far-end tension T_in",
     ),
     p(
         "bend_radius",
@@ -1113,6 +1114,10 @@ const CAPSTAN_EXIT: f64 = 40e-3;
 const CAPSTAN_SLACK: f64 = 10e-3;
 /// How far the tip is threaded past the bend (m).
 const CAPSTAN_THREAD: f64 = 15e-3;
+/// Time over which the tip tension rises once the wire is threaded (s).
+const CAPSTAN_RAMP: f64 = 0.1;
+/// Rest at full tension before the pull (s).
+const CAPSTAN_DWELL: f64 = 0.1;
 
 struct CapstanRun {
     scene: Scene,
@@ -1193,7 +1198,7 @@ impl Scenario for Capstan {
         "capstan"
     }
     fn description(&self) -> &'static str {
-        "soft wire pulled back through a bend of wrap angle theta against a dead tip force"
+        "soft wire threaded through a bend of wrap angle theta, loaded by a tip tension (ramped once threaded) and pulled back"
     }
     fn family(&self) -> Family {
         Family::Rod
@@ -1210,7 +1215,7 @@ impl Scenario for Capstan {
     fn sweep(&self) -> Vec<Fidelity> {
         sweep_of("segments", &[20.0, 40.0, 80.0])
     }
-    fn instantiate(&self, p: &Params) -> Result<Box<dyn ScenarioRun>, UsageError> {
+    fn instantiate_at(&self, p: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
         let r = p.get("wire_radius");
         let lumen = p.get("tube_radius");
         check_lumen(r, lumen, "tube")?;
@@ -1250,7 +1255,12 @@ impl Scenario for Capstan {
             )));
         }
         let t1 = ins / vi;
-        let t2 = t1 + 0.2;
+        // The tension is applied only once the wire is threaded (a dead
+        // force on the tip while it is fed would drag it across the entry
+        // straight into the wall): it ramps up over CAPSTAN_RAMP, then the
+        // wire dwells before the pull.
+        rod.tip_load_ramp = Some(LoadRamp::linear(t1, t1 + CAPSTAN_RAMP));
+        let t2 = t1 + CAPSTAN_RAMP + CAPSTAN_DWELL;
         let t3 = t2 + lp / vp;
         let mut scene = Scene::empty(self.id());
         scene.duration = t3;
@@ -1451,7 +1461,7 @@ impl Scenario for StickSlipThreshold {
     fn sweep(&self) -> Vec<Fidelity> {
         sweep_of("segments", &[10.0, 20.0, 40.0, 80.0])
     }
-    fn instantiate(&self, p: &Params) -> Result<Box<dyn ScenarioRun>, UsageError> {
+    fn instantiate_at(&self, p: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
         let r = p.get("wire_radius");
         let big_r = p.get("tube_radius");
         check_lumen(r, big_r, "tube")?;
@@ -1654,7 +1664,7 @@ impl Scenario for CoronaryTortuous {
     fn sweep(&self) -> Vec<Fidelity> {
         sweep_of("segments", &[30.0, 60.0, 120.0])
     }
-    fn instantiate(&self, p: &Params) -> Result<Box<dyn ScenarioRun>, UsageError> {
+    fn instantiate_at(&self, p: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
         let wire = Wire::from(p);
         check_lumen(wire.radius, vessel::CORONARY_RADIUS, "coronary")?;
         let l0 = p.get("initial_length");

@@ -24,6 +24,7 @@ pub mod haptic;
 pub mod mesh;
 pub mod model;
 pub mod observation;
+pub mod rng;
 pub mod scene;
 pub mod sdf;
 pub mod vessel;
@@ -33,8 +34,8 @@ pub use fidelity::{Fidelity, FidelityKey};
 pub use model::{Capability, EnergyProbe, Family, Model, ModelFactory, StepStats};
 pub use observation::{ContactObs, EnergyObs, Observation, RodObs, TissueObs};
 pub use scene::{
-    Body, ContactParams, ControlKey, ControlTimeline, DeviceCommand, Environment, RodBody, RodSection, Scene, Settle,
-    SolidMaterial, TetMesh, TissueBody,
+    Body, ContactParams, ControlKey, ControlTimeline, DeviceCommand, Environment, LoadRamp, RodBody, RodSection, Scene,
+    Settle, SolidMaterial, TetMesh, TissueBody,
 };
 pub use sdf::Sdf;
 

@@ -40,6 +40,8 @@ pub enum Capability {
     Twist,
     /// Dead force at the rod tip.
     TipForce,
+    /// Tip loads that change over time (`RodBody::tip_load_ramp`).
+    LoadRamp,
     /// Properties varying along the rod.
     VaryingProperties,
     /// Natural (rest) curvature.
@@ -71,6 +73,7 @@ impl Capability {
             Capability::Rod => "1D rod (guidewire, catheter, needle)",
             Capability::Twist => "twist: base rotation and torques",
             Capability::TipForce => "dead force on the rod tip",
+            Capability::LoadRamp => "tip loads that change over time",
             Capability::VaryingProperties => "stiffness, radius or density varying along the rod",
             Capability::RestCurvature => "natural (pre-shaped) curvature",
             Capability::Insertion => "insertion/retraction at the base",
@@ -91,6 +94,7 @@ impl Capability {
             Capability::Rod => "rod",
             Capability::Twist => "twist",
             Capability::TipForce => "tip-force",
+            Capability::LoadRamp => "load-ramp",
             Capability::VaryingProperties => "varying-properties",
             Capability::RestCurvature => "rest-curvature",
             Capability::Insertion => "insertion",

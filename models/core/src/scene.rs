@@ -74,6 +74,74 @@ pub struct RodBody {
     pub tip_force: Vec3,
     /// Dead torque on the tip (N m, world frame).
     pub tip_torque: Vec3,
+    /// How the tip loads grow over time: `None` applies them in full from
+    /// `t = 0`; a ramp scales both by its value at `t` (so a scene can thread
+    /// a wire first and load it after, or raise a pull force slowly).
+    pub tip_load_ramp: Option<LoadRamp>,
+}
+
+/// Piecewise-linear scale factor over time (dimensionless, `[0, 1]`); before
+/// the first key and after the last the nearest key's value holds.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct LoadRamp {
+    /// `(t, scale)` pairs: time (s), strictly increasing, and the scale there.
+    pub keys: Vec<(f64, f64)>,
+}
+
+impl LoadRamp {
+    /// Zero until `t0`, rising linearly to 1 at `t1`, 1 after (s).
+    pub fn linear(t0: f64, t1: f64) -> Self {
+        Self {
+            keys: vec![(t0, 0.0), (t1, 1.0)],
+        }
+    }
+
+    /// The scale at time `t` (s).
+    pub fn scale_at(&self, t: f64) -> f64 {
+        let k = &self.keys;
+        match k.len() {
+            0 => 1.0,
+            _ if t <= k[0].0 => k[0].1,
+            _ if t >= k[k.len() - 1].0 => k[k.len() - 1].1,
+            _ => {
+                let i = k.partition_point(|key| key.0 <= t) - 1;
+                let (a, b) = (k[i], k[i + 1]);
+                a.1 + (t - a.0) / (b.0 - a.0) * (b.1 - a.1)
+            }
+        }
+    }
+
+    /// Rate of change of the scale at `t` (1/s), zero on the flat parts and
+    /// the right-hand slope at a key.
+    pub fn rate_at(&self, t: f64) -> f64 {
+        let k = &self.keys;
+        if k.len() < 2 || t < k[0].0 || t >= k[k.len() - 1].0 {
+            return 0.0;
+        }
+        let i = k.partition_point(|key| key.0 <= t) - 1;
+        (k[i + 1].1 - k[i].1) / (k[i + 1].0 - k[i].0)
+    }
+
+    /// Check keys: at least one, finite, times strictly increasing, scales in `[0, 1]`.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.keys.is_empty() {
+            return Err("tip load ramp has no keys".into());
+        }
+        for (i, &(t, s)) in self.keys.iter().enumerate() {
+            if !(t.is_finite() && (0.0..=1.0).contains(&s)) {
+                return Err(format!(
+                    "tip load ramp key {i} ({t} s, {s}): time must be finite, scale in [0, 1]"
+                ));
+            }
+            if i > 0 && !(t > self.keys[i - 1].0) {
+                return Err(format!(
+                    "tip load ramp key {i} at {t} s is not after {} s",
+                    self.keys[i - 1].0
+                ));
+            }
+        }
+        Ok(())
+    }
 }
 
 impl RodBody {
@@ -92,7 +160,23 @@ impl RodBody {
             base: Iso3::identity(),
             tip_force: Vec3::zeros(),
             tip_torque: Vec3::zeros(),
+            tip_load_ramp: None,
         }
+    }
+
+    /// Scale of the tip loads at time `t` (s): 1 without a ramp.
+    pub fn tip_load_scale(&self, t: f64) -> f64 {
+        self.tip_load_ramp.as_ref().map_or(1.0, |r| r.scale_at(t))
+    }
+
+    /// Dead tip force at time `t` (N, world frame).
+    pub fn tip_force_at(&self, t: f64) -> Vec3 {
+        self.tip_load_scale(t) * self.tip_force
+    }
+
+    /// Dead tip torque at time `t` (N m, world frame).
+    pub fn tip_torque_at(&self, t: f64) -> Vec3 {
+        self.tip_load_scale(t) * self.tip_torque
     }
 
     /// The section at arclength `s` (m from the clamp); past the tip, the last.
@@ -141,6 +225,9 @@ impl RodBody {
         }
         if !(self.tip_force.iter().all(|x| x.is_finite()) && self.tip_torque.iter().all(|x| x.is_finite())) {
             return Err("tip loads must be finite".into());
+        }
+        if let Some(r) = &self.tip_load_ramp {
+            r.validate()?;
         }
         Ok(())
     }
@@ -468,6 +555,9 @@ impl Scene {
                     if r.tip_force != Vec3::zeros() {
                         c.push(Capability::TipForce);
                     }
+                    if r.tip_load_ramp.is_some() && (r.tip_force != Vec3::zeros() || r.tip_torque != Vec3::zeros()) {
+                        c.push(Capability::LoadRamp);
+                    }
                     if r.tip_torque != Vec3::zeros() || self.control.rotates() {
                         c.push(Capability::Twist);
                     }
@@ -594,5 +684,50 @@ impl Scene {
             }));
         }
         s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The ramp interpolates linearly, holds its end values, and its rate is
+    /// the slope of the segment the time falls in (exact arithmetic on these
+    /// dyadic values, so equality is exact).
+    #[test]
+    fn load_ramp_interpolates_and_holds() {
+        let r = LoadRamp {
+            keys: vec![(0.5, 0.0), (1.0, 1.0), (2.0, 0.5)],
+        };
+        assert_eq!(r.scale_at(0.0), 0.0);
+        assert_eq!(r.scale_at(0.75), 0.5);
+        assert_eq!(r.scale_at(1.5), 0.75);
+        assert_eq!(r.scale_at(3.0), 0.5);
+        assert_eq!(r.rate_at(0.25), 0.0);
+        assert_eq!(r.rate_at(0.75), 2.0);
+        assert_eq!(r.rate_at(1.5), -0.5);
+        assert_eq!(r.rate_at(2.5), 0.0);
+        let mut rod = RodBody::uniform(0.1, 1e-3, 1e9, 0.3, 1000.0);
+        rod.tip_force = Vec3::new(0.0, 2.0, 0.0);
+        assert_eq!(rod.tip_force_at(0.0), rod.tip_force, "no ramp: full load");
+        rod.tip_load_ramp = Some(r);
+        assert_eq!(rod.tip_force_at(0.75), Vec3::new(0.0, 1.0, 0.0));
+        assert!(rod.validate().is_ok());
+    }
+
+    /// Bad ramps are refused with a message naming the key.
+    #[test]
+    fn bad_load_ramps_are_refused() {
+        let mut rod = RodBody::uniform(0.1, 1e-3, 1e9, 0.3, 1000.0);
+        for (keys, needle) in [
+            (vec![], "no keys"),
+            (vec![(0.0, 0.0), (0.0, 1.0)], "not after"),
+            (vec![(0.0, 1.5)], "scale in [0, 1]"),
+            (vec![(f64::NAN, 0.5)], "must be finite"),
+        ] {
+            rod.tip_load_ramp = Some(LoadRamp { keys });
+            let err = rod.validate().unwrap_err();
+            assert!(err.contains(needle), "{err:?} should mention {needle:?}");
+        }
     }
 }

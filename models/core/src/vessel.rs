@@ -105,6 +105,14 @@ impl Sdf for Vessel {
         }
         best
     }
+    /// The Hessian of the lumen `p` is deepest in ([`Vessel::deepest`]),
+    /// the same one [`Sdf::gradient`] uses.
+    fn hessian(&self, p: &Vec3) -> crate::Mat3 {
+        match self.deepest(p).0 {
+            None => self.trunk.hessian(p),
+            Some(i) => self.branches[i].tube.hessian(p),
+        }
+    }
 }
 
 /// Aortic lumen radius (m): inner diameter 25 mm.
@@ -695,4 +703,66 @@ pub fn parse_obj(file: &str, text: &str) -> Result<TriSurface, MeshError> {
         }
     }
     Ok(s)
+}
+
+#[cfg(test)]
+mod hessian_tests {
+    use super::*;
+    use crate::Mat3;
+
+    /// The vessels' Hessian (the deepest lumen's) against central
+    /// differences of their gradient, at seeded points near the trunk and
+    /// branches whose difference stencil stays in one lumen and on one piece
+    /// of its centreline (no kink of the gradient inside it).
+    #[test]
+    fn vessel_hessian_matches_differences_of_the_gradient() {
+        // Step and the smallest distance from a centreline kept (m); the
+        // relative truncation error of central differences is about
+        // (h / rho)^2 = 4e-6 (see the sdf tests); rounding adds ~1e-10.
+        let (h, rho_min) = (1e-6, 5e-4);
+        let tol = (h / rho_min) * (h / rho_min);
+        for (vessel, seed) in [(y_bifurcation(), 7u64), (coronary_tortuous(), 8)] {
+            let tubes: Vec<&SweptTube> = std::iter::once(&vessel.trunk)
+                .chain(vessel.branches.iter().map(|b| &b.tube))
+                .collect();
+            // Which lumen and which piece of its centreline `p` belongs to.
+            let key = |p: &Vec3| {
+                let (lumen, _) = vessel.deepest(p);
+                let tube = tubes[lumen.map_or(0, |i| i + 1)];
+                let pr = tube.project(p);
+                let end = pr.s <= 0.0 || pr.s >= tube.length();
+                (lumen, pr.piece, end, pr.radial >= rho_min)
+            };
+            let mut rng = crate::rng::SplitMix64(seed);
+            let (mut worst, mut n) = (0.0f64, 0usize);
+            while n < 300 {
+                let tube = tubes[(rng.unit() * tubes.len() as f64) as usize];
+                let c = tube.point_at(rng.unit() * tube.length());
+                let p = c + Vec3::new(rng.unit() - 0.5, rng.unit() - 0.5, rng.unit() - 0.5) * 4e-3;
+                let k0 = key(&p);
+                let mut fd = Mat3::zeros();
+                let mut smooth = k0.3;
+                for k in 0..3 {
+                    let (mut a, mut b) = (p, p);
+                    a[k] += h;
+                    b[k] -= h;
+                    smooth &= key(&a) == k0 && key(&b) == k0;
+                    fd.set_column(k, &((vessel.gradient(&a) - vessel.gradient(&b)) / (a[k] - b[k])));
+                }
+                if !smooth {
+                    continue;
+                }
+                let got = vessel.hessian(&p);
+                let err = (got - fd).norm() / got.norm();
+                assert!(
+                    err < tol,
+                    "{}: hessian at {p:?} {got} vs differences {fd} (rel {err:e}, tol {tol:e})",
+                    vessel.name
+                );
+                worst = worst.max(err);
+                n += 1;
+            }
+            eprintln!("{}: worst rel err {worst:.2e} over {n} points", vessel.name);
+        }
+    }
 }

@@ -7,25 +7,7 @@ use std::sync::Arc;
 use surgbench_core::sdf::{CenterlineBuilder, Sdf, SdfUnion, SweptTube};
 use surgbench_core::{Vec3, vessel};
 
-/// splitmix64 in `[0, 1)`.
-struct Rng(u64);
-impl Rng {
-    fn unit(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        (z >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn in_box(&mut self, lo: Vec3, hi: Vec3) -> Vec3 {
-        Vec3::new(
-            lo.x + self.unit() * (hi.x - lo.x),
-            lo.y + self.unit() * (hi.y - lo.y),
-            lo.z + self.unit() * (hi.z - lo.z),
-        )
-    }
-}
+use surgbench_core::rng::SplitMix64 as Rng;
 
 /// A 3D centreline with lines and arcs in three planes.
 fn wiggly() -> CenterlineBuilder {

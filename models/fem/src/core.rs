@@ -3,7 +3,7 @@
 
 use crate::FemError;
 use crate::assembly::Pattern;
-use crate::element::{ElemBlocks, Elements, Jacobian, QUAD4, project_psd, rotation_angle, warp};
+use crate::element::{ElemBlocks, Elements, Jacobian, QUAD4, project_psd, rotation_angle};
 use crate::material::{Law, M3, Material};
 use rayon::prelude::*;
 use surgbench_core::{SolidMaterial, TetMesh, Vec3};
@@ -169,7 +169,7 @@ impl Solid {
                             s.k = if mat.law == Law::Linear {
                                 k0[e]
                             } else {
-                                warp(&k0[e], &r)
+                                elems.warped_stiffness(mat.mu, mat.lambda, e, &r)
                             };
                             s.r_used = r;
                             s.has_k = true;

@@ -21,6 +21,7 @@
 //!   (manufactured solutions).
 
 pub mod assembly;
+pub mod bench_support;
 pub mod core;
 pub mod dynamics;
 pub mod element;

@@ -126,3 +126,31 @@ fn rigid_motions_give_zero_force() {
         }
     }
 }
+
+/// The rotated-gradient form of the warped stiffness equals the product
+/// `R K0 R^T` of the rest stiffness, for random rotations of random tets.
+#[test]
+fn warped_stiffness_equals_rotated_rest_stiffness() {
+    use surgbench_fem::element::{Elements, warp};
+    use surgbench_fem::material::M3;
+    let (m, _) = deformed(7, 0.0);
+    let el = Elements::new(&m).unwrap();
+    let (mu, lambda) = (1.7e3, 1.1e4);
+    let mut rng = SplitMix(11);
+    let mut worst: f64 = 0.0;
+    for e in 0..el.len() {
+        let axis = rng.vec3(1.0).normalize();
+        let ang = 3.0 * rng.next_f64();
+        let r = *nalgebra::Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(axis), ang).matrix();
+        let a = warp(&el.rest_stiffness(mu, lambda, e), &r);
+        let b = el.warped_stiffness(mu, lambda, e, &r);
+        let scale = a.iter().map(|k: &M3| k.amax()).fold(0.0, f64::max);
+        for ab in 0..16 {
+            worst = worst.max((a[ab] - b[ab]).amax() / scale);
+            // Exact symmetry of the assembled form: K_ba = K_ab^T bit for bit.
+            assert_eq!(b[ab], b[4 * (ab % 4) + ab / 4].transpose(), "element {e}, block {ab}");
+        }
+    }
+    // Same quantity, two orders of summation: round-off (a few 1e-16).
+    assert!(worst < 1e-13, "max relative block difference {worst:.3e}");
+}

@@ -114,15 +114,11 @@ mod tests {
 
     #[test]
     fn grid_matches_brute_force() {
-        // xorshift64 points in a 1 x 0.5 x 0.2 box.
-        let mut s = 0x9E3779B97F4A7C15u64;
-        let mut r = || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
-        let pts: Vec<Vec3> = (0..500).map(|_| Vec3::new(r(), 0.5 * r(), 0.2 * r())).collect();
+        // Seeded points in a 1 x 0.5 x 0.2 box.
+        let mut rng = surgbench_core::rng::SplitMix64(0x9E37_79B9);
+        let pts: Vec<Vec3> = (0..500)
+            .map(|_| rng.in_box(Vec3::zeros(), Vec3::new(1.0, 0.5, 0.2)))
+            .collect();
         let rad = 0.13;
         let g = UniformGrid::new(&pts, rad).unwrap();
         let mut out = Vec::new();

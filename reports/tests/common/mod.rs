@@ -8,22 +8,8 @@ use std::path::Path;
 
 use surgbench_reports::{ResultRow, RunInfo};
 
-/// splitmix64 (Steele, Lea & Flood 2014): a tiny seeded generator for test data.
-pub struct SplitMix(pub u64);
-
-impl SplitMix {
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [0, 1).
-    pub fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
+/// The workspace's seeded generator for test data.
+pub use surgbench_core::rng::SplitMix64 as SplitMix;
 
 pub const UNSUPPORTED_REASON: &str = "chainmail has no bending stiffness under distributed gravity load";
 pub const FAILED_REASON: &str = "build failed: segments=5 is below the minimum of 8, \"rod too coarse\"";

@@ -3,27 +3,22 @@
 
 use surgbench_core::Vec3;
 
-/// SplitMix64: tiny, seeded, deterministic.
-pub struct Rng(pub u64);
+/// The workspace's seeded generator.
+pub use surgbench_core::rng::SplitMix64 as Rng;
 
-impl Rng {
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [lo, hi).
-    pub fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        let u = (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
-        lo + (hi - lo) * u
-    }
-    pub fn vec(&mut self, s: f64) -> Vec3 {
-        Vec3::new(self.uniform(-s, s), self.uniform(-s, s), self.uniform(-s, s))
-    }
+/// Random vectors for the derivative checks.
+pub trait RngVec {
+    /// Uniform in the cube `[-s, s)^3`.
+    fn vec(&mut self, s: f64) -> Vec3;
     /// A unit vector normal to `t`.
-    pub fn normal_to(&mut self, t: &Vec3) -> Vec3 {
+    fn normal_to(&mut self, t: &Vec3) -> Vec3;
+}
+
+impl RngVec for Rng {
+    fn vec(&mut self, s: f64) -> Vec3 {
+        self.in_box(Vec3::repeat(-s), Vec3::repeat(s))
+    }
+    fn normal_to(&mut self, t: &Vec3) -> Vec3 {
         let v = self.vec(1.0);
         (v - t * t.dot(&v)).normalize()
     }

@@ -44,14 +44,19 @@ pub fn jittered_block(size: Vec3, cells: [usize; 3], jitter: f64, seed: u64) -> 
 }
 
 pub fn tissue_scene(mesh: TetMesh, mat: SolidMaterial) -> Scene {
-    let mut s = Scene::empty("meshless-test");
-    s.bodies.push(Body::Tissue(TissueBody::new(mesh, mat)));
+    tissue_scene_with(TissueBody::new(mesh, mat), "meshless-test")
+}
+
+/// A scene holding one prepared tissue body.
+pub fn tissue_scene_with(body: TissueBody, name: &str) -> Scene {
+    let mut s = Scene::empty(name);
+    s.bodies.push(Body::Tissue(body));
     s
 }
 
 /// Cube of edge `l` with `n` cells per side, bottom (z = 0) fixed, top driven
-/// by `(0, 0, -strain l)`, ramped over `ramp` s, settling.
-pub fn compression_scene(l: f64, n: usize, strain: f64, nu: f64, ramp: f64) -> Scene {
+/// by `(0, 0, -strain l)`, ramped over `ramp_time` s, settling.
+pub fn compression_scene(l: f64, n: usize, strain: f64, nu: f64, ramp_time: f64) -> Scene {
     let m = mesh::block(Vec3::repeat(l), [n, n, n]);
     let mut body = TissueBody::new(m.clone(), material(nu));
     body.fixed_nodes = mesh::nodes_on_plane(&m, 2, 0.0, 1e-9 * l);
@@ -59,27 +64,13 @@ pub fn compression_scene(l: f64, n: usize, strain: f64, nu: f64, ramp: f64) -> S
         .into_iter()
         .map(|i| (i, Vec3::new(0.0, 0.0, -strain * l)))
         .collect();
-    let mut s = Scene::empty("meshless-compression");
-    s.bodies.push(Body::Tissue(body));
-    s.control = ControlTimeline {
-        keys: vec![
-            ControlKey {
-                t: 0.0,
-                insertion: 0.0,
-                rotation: 0.0,
-            },
-            ControlKey {
-                t: ramp,
-                insertion: 1.0,
-                rotation: 0.0,
-            },
-        ],
-    };
+    let mut s = tissue_scene_with(body, "meshless-compression");
+    s.control = ramp(ramp_time);
     s.settle = Some(Settle {
         velocity_tol: 1e-6,
-        min_time: ramp,
+        min_time: ramp_time,
     });
-    s.duration = 10.0 * ramp;
+    s.duration = 10.0 * ramp_time;
     s
 }
 
