@@ -302,18 +302,21 @@ impl Material {
 mod tests {
     use super::*;
 
-    /// Tiny deterministic RNG (splitmix64) for test inputs.
-    pub(crate) struct SplitMix(pub u64);
-    impl SplitMix {
-        pub(crate) fn next_f64(&mut self) -> f64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^= z >> 31;
-            (z >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    use surgbench_core::rng::SplitMix64 as SplitMix;
+
+    /// Signed draws for test inputs.
+    trait Signed {
+        /// Uniform in [-1, 1).
+        fn next_f64(&mut self) -> f64;
+        /// Matrix with entries uniform in [-amp, amp).
+        fn m3(&mut self, amp: f64) -> M3;
+    }
+
+    impl Signed for SplitMix {
+        fn next_f64(&mut self) -> f64 {
+            self.range(-1.0, 1.0)
         }
-        pub(crate) fn m3(&mut self, amp: f64) -> M3 {
+        fn m3(&mut self, amp: f64) -> M3 {
             M3::from_fn(|_, _| amp * self.next_f64())
         }
     }

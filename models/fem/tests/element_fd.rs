@@ -4,7 +4,7 @@
 //! motions give zero force.
 
 mod common;
-use common::{SplitMix, tissue};
+use common::{Signed, SplitMix, tissue};
 use surgbench_core::{Vec3, mesh};
 use surgbench_fem::core::Solid;
 use surgbench_fem::{Jacobian, Law};

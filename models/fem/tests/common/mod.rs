@@ -3,21 +3,22 @@
 
 use surgbench_core::{SolidMaterial, Vec3};
 
-/// splitmix64: tiny deterministic RNG for test inputs.
-pub struct SplitMix(pub u64);
+/// The workspace's seeded generator.
+pub use surgbench_core::rng::SplitMix64 as SplitMix;
 
-impl SplitMix {
+/// Signed draws for test inputs.
+pub trait Signed {
     /// Uniform in [-1, 1).
-    pub fn next_f64(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        (z >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-    }
+    fn next_f64(&mut self) -> f64;
     /// Vector with components uniform in [-amp, amp).
-    pub fn vec3(&mut self, amp: f64) -> Vec3 {
+    fn vec3(&mut self, amp: f64) -> Vec3;
+}
+
+impl Signed for SplitMix {
+    fn next_f64(&mut self) -> f64 {
+        self.range(-1.0, 1.0)
+    }
+    fn vec3(&mut self, amp: f64) -> Vec3 {
         Vec3::new(self.next_f64(), self.next_f64(), self.next_f64()) * amp
     }
 }
