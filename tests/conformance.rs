@@ -156,11 +156,7 @@ fn same_inputs_give_bit_identical_results() {
 /// Model x scenario pairs known to break rigid-motion invariance, with what
 /// was measured; each is open (noted on its issue) and checked as a strict
 /// expected failure, so a fix shows up here.
-const KNOWN_FRAME_DEPENDENT: &[(&str, &str, &str)] = &[(
-    "pbd-rod",
-    "capstan",
-    "6e-4 m after 20 steps at 8 segments; out of plane by 2e-4 m from the first step in the rotated frame",
-)];
+const KNOWN_FRAME_DEPENDENT: &[(&str, &str, &str)] = &[];
 
 #[test]
 fn rigid_motion_of_the_scene_moves_the_answer_rigidly() {

@@ -29,6 +29,16 @@ impl SplitMix64 {
         lo + (hi - lo) * self.unit()
     }
 
+    /// Uniform in `[-1, 1)`.
+    pub fn signed(&mut self) -> f64 {
+        self.range(-1.0, 1.0)
+    }
+
+    /// Vector with components uniform in `[-1, 1)` (x, y, z drawn in order).
+    pub fn signed_vec(&mut self) -> Vec3 {
+        self.in_box(Vec3::repeat(-1.0), Vec3::repeat(1.0))
+    }
+
     /// Uniform in the box `[lo, hi)` (componentwise; x, y, z drawn in order).
     pub fn in_box(&mut self, lo: Vec3, hi: Vec3) -> Vec3 {
         let x = self.range(lo.x, hi.x);

@@ -25,6 +25,7 @@ fn rod_model(iterations: usize, substeps: usize) -> Box<dyn Model> {
     }));
     scene.environment.contact.friction_static = 0.1;
     scene.environment.contact.friction_dynamic = 0.05;
+    scene.environment.contact.margin = 2e-4; // wire radius (harness convention)
     let mut f = Fidelity {
         segments: Some(100),
         dt: Some(1e-3),

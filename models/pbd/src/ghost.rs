@@ -353,26 +353,18 @@ pub fn project_particle_triangle(
 mod tests {
     use super::*;
 
-    /// splitmix64 in [-1, 1).
-    struct Rng(u64);
-    impl Rng {
-        fn next(&mut self) -> f64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        }
-        fn vec(&mut self) -> Vec3 {
-            Vec3::new(self.next(), self.next(), self.next())
-        }
-    }
+    use crate::testrng::Rng;
 
     #[test]
     fn closest_point_on_triangle_is_the_minimum_over_a_dense_sampling() {
         let mut rng = Rng(3);
         for case in 0..200 {
-            let [a, b, c, p] = [rng.vec(), rng.vec(), rng.vec(), rng.vec() * 2.0];
+            let [a, b, c, p] = [
+                rng.signed_vec(),
+                rng.signed_vec(),
+                rng.signed_vec(),
+                rng.signed_vec() * 2.0,
+            ];
             let (q, bary) = closest_on_triangle(&p, &a, &b, &c);
             let recon = a * bary[0] + b * bary[1] + c * bary[2];
             assert!(
@@ -399,16 +391,16 @@ mod tests {
     fn contact_correction_conserves_momentum_and_resolves_the_penetration() {
         let mut rng = Rng(9);
         for case in 0..50 {
-            let mut tri = [rng.vec(), rng.vec(), rng.vec()];
+            let mut tri = [rng.signed_vec(), rng.signed_vec(), rng.signed_vec()];
             let n = (tri[1] - tri[0]).cross(&(tri[2] - tri[0])).normalize();
             let bary = {
-                let (u, v) = (0.5 * (rng.next() + 1.0), 0.5 * (rng.next() + 1.0));
+                let (u, v) = (0.5 * (rng.signed() + 1.0), 0.5 * (rng.signed() + 1.0));
                 let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
                 [1.0 - u - v, u, v]
             };
             let q = tri[0] * bary[0] + tri[1] * bary[1] + tri[2] * bary[2];
-            let mut p = q - n * 0.1 * (1.0 + rng.next()).max(0.01);
-            let masses = [1.0, 1.0 + rng.next().abs(), 2.0, 0.5 + rng.next().abs()];
+            let mut p = q - n * 0.1 * (1.0 + rng.signed()).max(0.01);
+            let masses = [1.0, 1.0 + rng.signed().abs(), 2.0, 0.5 + rng.signed().abs()];
             let (p0, t0) = (p, tri);
             let mut lambda = 0.0;
             let c = project_particle_triangle(

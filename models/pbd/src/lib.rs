@@ -37,6 +37,8 @@ pub mod ghost;
 pub mod hash;
 pub mod mesh;
 pub mod rod;
+#[cfg(test)]
+pub(crate) mod testrng;
 pub mod tissue;
 
 pub use ghost::{GhostSurface, SurfaceHit, project_particle_triangle};
@@ -44,8 +46,8 @@ pub use hash::BoxHash;
 pub use mesh::block_tet_mesh;
 pub use rod::{PbdRod, PbdRodFactory, RodSettings};
 pub use tissue::{
-    ContactParticle, ParticleContact, PbdTissue, PbdTissueFactory, TissueSettings, project_volume, tet_volume,
-    tet_volume_gradients,
+    ContactParticle, ParticleContact, PbdTissue, PbdTissueFactory, StaticInfo, StaticParams, TissueSettings,
+    project_volume, tet_volume, tet_volume_gradients,
 };
 
 /// Range checks of the solver knobs both PBD models share: `dt` (s),

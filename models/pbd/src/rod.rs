@@ -40,8 +40,8 @@ use std::sync::Arc;
 use nalgebra::{Matrix3, Quaternion, UnitQuaternion};
 use surgbench_core::scene::FlowField;
 use surgbench_core::{
-    BuildError, Capability, ContactObs, DeviceCommand, EnergyObs, Family, Fidelity, FidelityKey, Iso3, Mat3, Model,
-    ModelFactory, Observation, RodBody, RodObs, Scene, Sdf, SimError, StepStats, Unsupported, Vec3,
+    BuildError, Capability, ContactObs, DeviceCommand, EnergyObs, Family, Fidelity, FidelityKey, Iso3, LoadRamp, Mat3,
+    Model, ModelFactory, Observation, RodBody, RodObs, Scene, Sdf, SimError, StepStats, Unsupported, Vec3,
 };
 
 type Quat = Quaternion<f64>;
@@ -80,6 +80,7 @@ const ROD_CAPS: &[Capability] = &[
     Capability::Rod,
     Capability::Twist,
     Capability::TipForce,
+    Capability::LoadRamp,
     Capability::VaryingProperties,
     Capability::RestCurvature,
     Capability::Insertion,
@@ -114,6 +115,25 @@ impl ModelFactory for PbdRodFactory {
             extras: Default::default(),
         };
         f.extras.insert("substeps".into(), 4.0);
+        // A dead tip load enters the prediction as h^2 F / m_tip, which on a
+        // light tip particle can be many segment lengths; the chain's
+        // Gauss-Seidel then cannot carry it back to the clamp within the
+        // substep and the wire over-stretches (capstan: 1 N on 2.2e-6 kg at
+        // h = 0.25 ms is 29 mm against 1.1 mm segments). Default substeps keep
+        // that offset below a tenth of a segment at the default 50 segments,
+        // h <= l sqrt(0.1 rho A / (2 |F|)) (measured: capstan at 40 segments
+        // runs with 64 substeps, tension ratio within 1.3% of exp(mu theta),
+        // stretch 1.3% = T / EA; it trips the stretch watchdog with 4).
+        if let Some(rod) = scene.rods().next() {
+            let fmax = rod.tip_force.norm();
+            let s = rod.section_at(rod.length);
+            let l = rod.length / 50.0;
+            if fmax > 0.0 {
+                let h_max = l * (0.1 * s.density * s.area() / (2.0 * fmax)).sqrt();
+                let ns = (1e-3 / h_max).ceil().clamp(4.0, 1e4);
+                f.extras.insert("substeps".into(), ns);
+            }
+        }
         // Static scenes are run to equilibrium with the model's own damping:
         // critical damping of the first cantilever bending mode,
         // c = 2 omega_1, omega_1 = 1.875^2 sqrt(E I / (rho A L^4)).
@@ -189,8 +209,16 @@ impl RodSettings {
 /// A vessel-wall contact of one particle (plane constraint of Macklin et al.
 /// 2014, "Unified Particle Physics for Real-Time Applications", sec. 5-6).
 ///
+/// The particle (a point on the centreline) is kept `margin` inside the
+/// wall, `phi + margin <= 0`: the scene's contact margin, which by the
+/// harness convention already is the wire radius (`ContactParams::margin`:
+/// "nodes are kept this far inside the wall"), so the rod's own radius is not
+/// added again (doing so made the `capstan` wire, radius 0.445 mm in a
+/// 0.7 mm lumen, not fit its tube: every particle on the axis started in
+/// contact, with the axis's undefined normal).
+///
 /// A particle near the wall at the start of a substep is a candidate; its
-/// plane is linearised where the particle first reaches the wall (`phi + r +
+/// plane is linearised where the particle first reaches the wall (`phi +
 /// margin >= 0`), at the prediction or during the solve, and then kept for
 /// the substep. Linearising at a point still deep in the lumen would take
 /// the normal where the SDF gradient may be ill-defined (on a tube's axis
@@ -202,7 +230,7 @@ struct Contact {
     /// Whether the plane below is set (the particle reached the wall).
     live: bool,
     normal: Vec3,
-    /// Signed gap function at `x_ref`: `phi + r + margin` (> 0 = violating).
+    /// Signed gap function at `x_ref`: `phi + margin` (> 0 = violating).
     d0: f64,
     x_ref: Vec3,
     /// Accumulated correction this substep (m).
@@ -266,8 +294,14 @@ pub struct PbdRod {
     clamp_pos: Vec3,
     clamp_q: Quat,
     gravity: Vec3,
+    /// Full tip force `F` (N, world frame); applied as `s(t) F`.
     tip_force: Vec3,
+    /// Full tip torque (N m, world frame); applied as `s(t) tau`.
     tip_torque: Vec3,
+    /// Time profile `s(t)` of the tip loads (`None`: `s = 1`).
+    tip_ramp: Option<LoadRamp>,
+    /// `s(t)` at the time of the substep being solved (set by `step`).
+    load_scale: f64,
     vessel: Option<Arc<dyn Sdf>>,
     flow: Option<Arc<dyn FlowField>>,
     mu_s: f64,
@@ -537,6 +571,8 @@ impl PbdRod {
             gravity: scene.gravity,
             tip_force: rod.tip_force,
             tip_torque: rod.tip_torque,
+            tip_ramp: rod.tip_load_ramp.clone(),
+            load_scale: rod.tip_load_scale(0.0),
             vessel: scene.environment.vessel.clone(),
             flow: scene.environment.flow.clone(),
             mu_s: c.friction_static,
@@ -558,6 +594,11 @@ impl PbdRod {
             projections: 0,
             last_h: set.dt / set.substeps as f64,
         })
+    }
+
+    /// Scale `s(t)` of the tip loads at time `t` (s); 1 without a ramp.
+    fn tip_scale(&self, t: f64) -> f64 {
+        self.tip_ramp.as_ref().map_or(1.0, |r| r.scale_at(t))
     }
 
     /// Resolved settings.
@@ -590,7 +631,7 @@ impl PbdRod {
         for i in 1..=n {
             let mut f = self.gravity * self.mass[i];
             if i == n {
-                f += self.tip_force;
+                f += self.tip_force * self.load_scale;
             }
             // Damp the old velocity only, so the static load h^2 g is not scaled.
             let mut v = self.v[i] * damp + f * (h * self.w[i]);
@@ -623,7 +664,7 @@ impl PbdRod {
             let mut wb = r.transpose() * self.omega[j] * damp;
             let mut tau = -wb.cross(&ib.component_mul(&wb));
             if j == n - 1 {
-                tau += r.transpose() * self.tip_torque;
+                tau += r.transpose() * (self.tip_torque * self.load_scale);
             }
             wb += tau.component_div(&ib) * h;
             self.omega[j] = r * wb;
@@ -649,12 +690,12 @@ impl PbdRod {
             let r = self.radius_node[i];
             let band = 2.0 * (xi - self.x_prev[i]).norm() + r;
             let (xc, phic) = self.sdf_cache[i];
-            if phic + SDF_LIPSCHITZ_BOUND * (xi - xc).norm() + r + self.margin <= -band {
+            if phic + SDF_LIPSCHITZ_BOUND * (xi - xc).norm() + self.margin <= -band {
                 continue;
             }
             let (phi, g) = sdf.distance_gradient(&xi);
             self.sdf_cache[i] = (xi, phi);
-            let d0 = phi + r + self.margin;
+            let d0 = phi + self.margin;
             if d0 > -band {
                 let mut c = Contact {
                     i,
@@ -779,15 +820,14 @@ impl PbdRod {
             if !c.live {
                 let Some(sdf) = &self.vessel else { continue };
                 let xi = self.x[i];
-                let r = self.radius_node[i];
                 let (xc, phic) = self.sdf_cache[i];
-                if phic + SDF_LIPSCHITZ_BOUND * (xi - xc).norm() + r + self.margin < 0.0 {
+                if phic + SDF_LIPSCHITZ_BOUND * (xi - xc).norm() + self.margin < 0.0 {
                     continue;
                 }
                 let (phi, g) = sdf.distance_gradient(&xi);
                 self.sdf_cache[i] = (xi, phi);
                 c.x_ref = xi;
-                if !c.linearise(phi + r + self.margin, &g) {
+                if !c.linearise(phi + self.margin, &g) {
                     continue;
                 }
             }
@@ -907,7 +947,9 @@ impl PbdRod {
             e.kinetic += 0.5 * self.mass[i] * self.v[i].norm_squared();
             e.external -= self.mass[i] * self.gravity.dot(&self.x[i]);
         }
-        e.external -= self.tip_force.dot(&self.x[self.n]);
+        // Dead-load potential -s(t) F . x_tip with the absolute tip position
+        // (the harness adds the work of the load change, -int s' F . x_tip dt).
+        e.external -= self.tip_scale(self.time) * self.tip_force.dot(&self.x[self.n]);
         for j in 0..self.n {
             let r = rotmat(&self.q[j]);
             let wb = r.transpose() * self.omega[j];
@@ -936,6 +978,8 @@ impl Model for PbdRod {
         let h = dt / ns as f64;
         let a = self.last_cmd;
         for s in 0..ns {
+            // Loads at the end of the substep, like the clamp command.
+            self.load_scale = self.tip_scale(self.time + (s + 1) as f64 * h);
             let f = (s + 1) as f64 / ns as f64;
             let ins = a.insertion + f * (cmd.insertion - a.insertion);
             let rot = a.rotation + f * (cmd.rotation - a.rotation);
@@ -972,7 +1016,7 @@ impl Model for PbdRod {
                 let pen = self
                     .vessel
                     .as_ref()
-                    .map(|s| s.distance(&self.x[c.i]) + self.radius_node[c.i])
+                    .map(|s| s.distance(&self.x[c.i]) + self.margin)
                     .unwrap_or(0.0)
                     .max(0.0);
                 ContactObs {
@@ -1010,30 +1054,14 @@ impl Model for PbdRod {
 mod tests {
     use super::*;
 
-    /// splitmix64 in [-1, 1).
-    struct Rng(u64);
-    impl Rng {
-        fn next(&mut self) -> f64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        }
-        fn quat(&mut self) -> Quat {
-            Quat::new(self.next(), self.next(), self.next(), self.next()).normalize()
-        }
-        fn vec(&mut self) -> Vec3 {
-            Vec3::new(self.next(), self.next(), self.next())
-        }
-    }
+    use crate::testrng::{Rng, quat};
 
     #[test]
     fn body_frame_update_equals_the_world_frame_update() {
         let mut rng = Rng(1);
         for case in 0..100 {
-            let q = rng.quat();
-            let u = rng.vec() * 1e-3;
+            let q = quat(&mut rng);
+            let u = rng.signed_vec() * 1e-3;
             let world = rotmat(&q) * u;
             let exact = (q + Quat::from_imag(world * 0.5) * q).normalize();
             let fast = rotate_body(&q, &u);
@@ -1046,7 +1074,7 @@ mod tests {
             );
         }
         // A large update takes the exact branch.
-        let q = rng.quat();
+        let q = quat(&mut rng);
         let u = Vec3::new(0.3, -0.2, 0.1);
         let exact = (q + mul_pure(&q, &(u * 0.5))).normalize();
         assert!((rotate_body(&q, &u) - exact).norm() < 1e-15);
@@ -1058,11 +1086,11 @@ mod tests {
         // against the closed form used in `solve_bend_twist`.
         let mut rng = Rng(2);
         for case in 0..100 {
-            let r = rng.quat();
+            let r = quat(&mut rng);
             let (w, v) = (r.w, r.imag());
             let b = Mat3::identity() * w + skew(&v);
-            let (ta, aa) = (1.0 + rng.next().abs(), 3.0 + rng.next().abs());
-            let (tb, ab) = (1.0 + rng.next().abs(), 3.0 + rng.next().abs());
+            let (ta, aa) = (1.0 + rng.signed().abs(), 3.0 + rng.signed().abs());
+            let (tb, ab) = (1.0 + rng.signed().abs(), 3.0 + rng.signed().abs());
             let wa = Vec3::new(ta, ta, aa);
             let wb = Vec3::new(tb, tb, ab);
             let len = 0.5;
@@ -1075,7 +1103,7 @@ mod tests {
                 + a3 * a3.transpose() * jc.z;
             // Relies on |r| = 1; roundoff of O(10) flops on O(10) entries.
             assert!((k - closed).amax() < 1e-12, "case {case}: {k} vs {closed}");
-            let rhs = rng.vec();
+            let rhs = rng.signed_vec();
             let kk = [k[(0, 0)], k[(0, 1)], k[(0, 2)], k[(1, 1)], k[(1, 2)], k[(2, 2)]];
             let x = solve_spd3(kk, &rhs).expect("SPD");
             assert!(

@@ -65,6 +65,9 @@ use surgbench_core::{
     Scene, SimError, StepStats, TissueBody, TissueObs, Unsupported, Vec3,
 };
 
+mod statics;
+pub use statics::{StaticInfo, StaticParams};
+
 use crate::color::{Partition, partition};
 use crate::ghost::{GhostSurface, project_particle_triangle};
 use crate::hash::BoxHash;
@@ -1174,5 +1177,26 @@ impl Model for PbdTissue {
 
     fn dt(&self) -> f64 {
         self.set.dt
+    }
+
+    /// `static_hand_force_n`: the hand force (magnitude) at the converged
+    /// static equilibrium of this model's energy with the tool where it is
+    /// ([`PbdTissue::static_equilibrium`]); `xpbd_over_static_force`: the
+    /// observed hand force projected on it over its magnitude (1 when XPBD
+    /// has converged and settled; below 1 measures iteration error);
+    /// `static_rel_residual` and `static_converged` (1 or 0) certify the solve.
+    fn diagnostics(&self) -> std::collections::BTreeMap<String, f64> {
+        let mut d = std::collections::BTreeMap::new();
+        let Ok(s) = self.static_equilibrium(&StaticParams::default()) else {
+            return d;
+        };
+        let f2 = s.hand_force.norm_squared();
+        d.insert("static_hand_force_n".into(), s.hand_force.norm());
+        if f2 > 0.0 {
+            d.insert("xpbd_over_static_force".into(), self.hand_force.dot(&s.hand_force) / f2);
+        }
+        d.insert("static_rel_residual".into(), s.rel_residual);
+        d.insert("static_converged".into(), if s.converged { 1.0 } else { 0.0 });
+        d
     }
 }

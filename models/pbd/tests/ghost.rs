@@ -11,17 +11,8 @@ const R_OUT: f64 = 4e-3;
 const HEIGHT: f64 = 8e-3;
 const RHO: f64 = 1000.0;
 
-/// splitmix64 in [-1, 1).
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-    }
-}
+mod common;
+use common::Rng;
 
 fn wall() -> TetMesh {
     tube(R_IN, R_OUT, HEIGHT, 16, 2, 4)
@@ -95,7 +86,11 @@ fn inner_wall_triangles_face_the_lumen_and_queries_are_exact() {
     // Hierarchy answers equal brute force over all triangles.
     let mut rng = Rng(5);
     for case in 0..300 {
-        let p = Vec3::new(rng.next() * 5e-3, rng.next() * 5e-3, (rng.next() + 1.0) * 0.5 * HEIGHT);
+        let p = Vec3::new(
+            rng.signed() * 5e-3,
+            rng.signed() * 5e-3,
+            (rng.signed() + 1.0) * 0.5 * HEIGHT,
+        );
         let brute = (0..g.triangles.len())
             .map(|t| {
                 let [a, b, c] = g.corners(t);

@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use surgbench_core::sdf::StraightTube;
 use surgbench_core::{
-    BuildError, DeviceCommand, Fidelity, Iso3, Model, ModelFactory, Observation, RodBody, Scene, Vec3,
+    BuildError, DeviceCommand, Fidelity, Iso3, LoadRamp, Model, ModelFactory, Observation, RodBody, Scene, Vec3,
 };
 use surgbench_pbd::PbdRodFactory;
 
@@ -256,6 +256,7 @@ fn reruns_are_bit_identical() {
     }));
     scene.environment.contact.friction_static = 0.2;
     scene.environment.contact.friction_dynamic = 0.1;
+    scene.environment.contact.margin = R;
     let cmd = |k: usize| DeviceCommand {
         insertion: 1e-4 * k as f64,
         rotation: 0.01 * k as f64,
@@ -307,6 +308,8 @@ fn tube_scene(radius: f64, mu_s: f64, mu_k: f64) -> Scene {
     }));
     scene.environment.contact.friction_static = mu_s;
     scene.environment.contact.friction_dynamic = mu_k;
+    // Harness convention: the margin is the wire radius (centreline contact).
+    scene.environment.contact.margin = R;
     scene
 }
 
@@ -460,6 +463,7 @@ fn tight_tube_feed_scene() -> Scene {
     }));
     scene.environment.contact.friction_static = 0.3;
     scene.environment.contact.friction_dynamic = 0.3;
+    scene.environment.contact.margin = 0.445e-3;
     scene
 }
 
@@ -504,4 +508,111 @@ fn wire_on_a_tube_axis_gives_the_same_answer_in_a_rotated_frame() {
     // 8e-16 m at step 1 (measured; 3.8e-13 m at step 10, 4.7e-9 m at step
     // 20), so 10 steps and 1e-10 m. The axis-normal defect gave 1.1e-3 m.
     assert!(worst < 1e-10, "rotated frame differs by {worst} m");
+}
+
+/// Tip of a 0.1 m cantilever (no gravity) under the transverse tip force
+/// `f` with an optional ramp, at every step: `(time, tip, external energy)`.
+fn tip_history(f: Vec3, ramp: Option<LoadRamp>, steps: usize) -> Vec<(f64, Vec3, f64)> {
+    let mut scene = Scene::empty("ramped tip load");
+    let mut rod = RodBody::uniform(0.1, R, E, NU, RHO);
+    rod.tip_force = f;
+    rod.tip_load_ramp = ramp;
+    scene.bodies.push(rod.into());
+    // Converged solves (20 iterations x 100 substeps, as in the cantilever
+    // convergence test); damping 500/s is about critical for the first mode.
+    let mut m = PbdRodFactory
+        .build(&scene, &fid(10, 20, 100, 1e-3, 500.0))
+        .expect("build");
+    (0..steps)
+        .map(|k| {
+            m.step(1e-3, &still(0))
+                .unwrap_or_else(|e| panic!("step {k} failed: {e}"));
+            let o = m.observe();
+            (o.time, o.rods[0].tip(), o.energy.external)
+        })
+        .collect()
+}
+
+#[test]
+fn ramped_tip_load_waits_for_its_ramp_and_settles_where_the_full_load_does() {
+    let f = Vec3::new(0.0, 0.0, -1e-3);
+    let (t0, t1) = (0.02, 0.05);
+    let ramp = LoadRamp::linear(t0, t1);
+    let steps = 200;
+    let ramped = tip_history(f, Some(ramp.clone()), steps);
+    let full = tip_history(f, None, steps);
+    let rest = Vec3::new(0.1, 0.0, 0.0);
+    // Before t0 the load is exactly zero: the rod must not move beyond
+    // roundoff of the rest shape (measured 1.4e-17 m).
+    let before = ramped
+        .iter()
+        .filter(|(t, _, _)| *t <= t0)
+        .map(|(_, x, _)| (x - rest).norm())
+        .fold(0.0, f64::max);
+    println!("ramped load: tip moved {before:.3e} m before t0 = {t0} s");
+    assert!(before < 1e-15, "tip moved {before} m before the ramp starts at {t0} s");
+    // Meanwhile the un-ramped rod has moved by a large fraction of its deflection.
+    let early = (full[(t0 / 1e-3) as usize - 1].1 - rest).norm();
+    assert!(early > 1e-5, "full load moved the tip only {early} m by {t0} s");
+    // The reported external energy is the dead-load potential -s(t) F . x_tip.
+    for &(t, x, ext) in &ramped {
+        let exp = -ramp.scale_at(t) * f.dot(&x);
+        // Same formula, same operands: roundoff only.
+        assert!(
+            (ext - exp).abs() <= 1e-15 * f.norm() * 0.1,
+            "external energy {ext:e} J at t = {t} s, expected {exp:e}"
+        );
+    }
+    let (a, b) = (ramped[steps - 1].1, full[steps - 1].1);
+    let ei = E * PI * R.powi(4) / 4.0;
+    let eb = f.norm() * 0.1f64.powi(3) / (3.0 * ei);
+    let rel = (a - b).norm() / eb;
+    let eb_rel = (-a.z - eb) / eb;
+    println!(
+        "settled tips: ramped {a:?}, full {b:?}; difference {rel:.2e} of F L^3/(3EI) = {eb:.4e} m; ramped vs EB {eb_rel:.2e}"
+    );
+    // Both settle to the same static state; the residual motion after 0.15 s
+    // of critical damping is what separates them (measured 2.9e-12 relative).
+    assert!(rel < 1e-9, "ramped {a:?} vs full {b:?}: rel. difference {rel}");
+    // 10 segments, second-order discretisation (cantilever test): within 1%.
+    assert!(eb_rel.abs() < 1e-2, "ramped deflection {} vs EB {eb}", -a.z);
+}
+
+#[test]
+fn capstan_wire_fits_its_tube_when_the_margin_is_its_radius() {
+    // Regression: the contact gap used to add the rod radius to the scene's
+    // margin, which by the harness convention already is the wire radius, so
+    // the capstan wire (0.445 mm in a 0.7 mm lumen) did not fit: every
+    // particle on the axis started in contact and the first step compressed
+    // the wire by 41% (stretch watchdog at t = 1 ms).
+    let mut scene = tight_tube_feed_scene();
+    if let surgbench_core::Body::Rod(r) = &mut scene.bodies[0] {
+        r.tip_force = Vec3::zeros();
+    }
+    let cmd = |k: usize| DeviceCommand {
+        insertion: 0.02 * 1e-3 * k as f64,
+        rotation: 0.0,
+        base_pose: None,
+    };
+    let (o, _) = run(&scene, &fid(40, 20, 4, 1e-3, 0.0), 20, cmd);
+    let off_axis = o.rods[0]
+        .nodes
+        .iter()
+        .map(|p| p.y.abs().max(p.z.abs()))
+        .fold(0.0, f64::max);
+    let stretch = o.rods[0].max_stretch;
+    println!(
+        "wire on the axis after 20 steps: off axis {off_axis:.1e} m, max stretch {stretch:.2e}, {} contacts",
+        o.contacts.len()
+    );
+    assert!(
+        o.contacts.is_empty(),
+        "a wire on the axis touches nothing: {:?}",
+        o.contacts
+    );
+    assert!(off_axis == 0.0, "axial feed moved a node off the axis by {off_axis} m");
+    // The clamp starts at v = 20 mm/s: an elastic wave of strain v / c,
+    // c = sqrt(E / rho) = 176 m/s, i.e. 1.1e-4, plus the Gauss-Seidel lag;
+    // measured -4.0e-4; the bug gave -0.41.
+    assert!(stretch.abs() < 1e-3, "max stretch {stretch}");
 }

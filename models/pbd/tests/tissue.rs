@@ -4,22 +4,12 @@ use surgbench_core::{
     Body, BuildError, DeviceCommand, Fidelity, Iso3, Model, ModelFactory, Observation, Scene, SolidMaterial,
     TissueBody, Vec3,
 };
-use surgbench_pbd::{PbdTissue, PbdTissueFactory, block_tet_mesh, project_volume, tet_volume, tet_volume_gradients};
+use surgbench_pbd::{
+    PbdTissue, PbdTissueFactory, StaticParams, block_tet_mesh, project_volume, tet_volume, tet_volume_gradients,
+};
 
-/// splitmix64, for seeded test data.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-    }
-    fn vec(&mut self) -> Vec3 {
-        Vec3::new(self.next(), self.next(), self.next())
-    }
-}
+mod common;
+use common::Rng;
 
 fn fid(iters: usize, sub: usize, dt: f64, damping: f64) -> Fidelity {
     let mut f = Fidelity {
@@ -82,7 +72,7 @@ fn run(scene: &Scene, f: &Fidelity, steps: usize, ramp: usize) -> (Observation, 
 fn volume_gradients_match_finite_differences() {
     let mut rng = Rng(7);
     for case in 0..20 {
-        let p: [Vec3; 4] = std::array::from_fn(|_| rng.vec());
+        let p: [Vec3; 4] = std::array::from_fn(|_| rng.signed_vec());
         let g = tet_volume_gradients(&p);
         for i in 0..4 {
             for a in 0..3 {
@@ -109,7 +99,7 @@ fn single_tet_is_projected_back_to_its_rest_volume() {
     let mut rng = Rng(11);
     let rest: [Vec3; 4] = [Vec3::zeros(), Vec3::x(), Vec3::y(), Vec3::z()];
     let v0 = tet_volume(&rest);
-    let mut p = rest.map(|q| q + rng.vec() * 0.2);
+    let mut p = rest.map(|q| q + rng.signed_vec() * 0.2);
     let w = [1.0, 0.5, 2.0, 1.0];
     let mut lambda = 0.0;
     let mut errs = vec![(tet_volume(&p) - v0).abs() / v0];
@@ -423,17 +413,7 @@ fn bad_input_is_rejected_not_panicked() {
 /// A 2x2x2-cell block (1 cm) on a fixed base with its top face driven down
 /// by `d` (m), settled: (hand force, multiplier hand force, constraint energy).
 fn compressed_block(d: f64, iters: usize) -> (Vec3, Vec3, f64) {
-    let h = 5e-3;
-    let top = 2.0 * h;
-    let scene = block_scene(
-        [2, 2, 2],
-        h,
-        0.3,
-        |p| p.z == 0.0,
-        |p| p.z == top,
-        Vec3::new(0.0, 0.0, -d),
-    );
-    let (o, m) = run(&scene, &fid(iters, 10, 1e-3, 200.0), 300, 100);
+    let (o, m) = compressed_model(d, iters, 10, 300);
     (o.hand_force, m.multiplier_hand_force(), o.energy.elastic)
 }
 
@@ -461,4 +441,96 @@ fn hand_force_is_the_derivative_of_the_energy_in_the_driven_displacement() {
     // At convergence lambda / h^2 = -C / alpha (Macklin et al. 2016, eq. 18):
     // the two estimates agree up to the solve's residual (measured 1e-16).
     assert!(rel_lambda < 1e-3, "multiplier force {fl:?} vs energy force {f:?}");
+}
+
+/// The compressed block of [`compressed_block`] stepped `steps` steps
+/// (ramp over 100) at `iters` iterations and `sub` substeps.
+fn compressed_model(d: f64, iters: usize, sub: usize, steps: usize) -> (Observation, PbdTissue) {
+    let h = 5e-3;
+    let top = 2.0 * h;
+    let scene = block_scene(
+        [2, 2, 2],
+        h,
+        0.3,
+        |p| p.z == 0.0,
+        |p| p.z == top,
+        Vec3::new(0.0, 0.0, -d),
+    );
+    run(&scene, &fid(iters, sub, 1e-3, 200.0), steps, 100)
+}
+
+#[test]
+fn static_equilibrium_is_the_converged_xpbd_answer_from_any_start() {
+    let d = 2e-4;
+    let p = StaticParams::default();
+    let (o_conv, m_conv) = compressed_model(d, 40, 10, 300);
+    // One iteration, one substep, stopped right after the ramp: far from
+    // converged and not settled.
+    let (o_raw, m_raw) = compressed_model(d, 1, 1, 100);
+    let a = m_conv.static_equilibrium(&p).expect("compliant block");
+    let b = m_raw.static_equilibrium(&p).expect("compliant block");
+    let f = a.hand_force;
+    println!(
+        "static: {f:?} ({} GN, {} CG, rel res {:.1e}) and {:?} ({} GN, {} CG, rel res {:.1e}); \
+         settled 40-it XPBD {:?}, 1-it XPBD {:?} (fraction {:.3})",
+        a.newton_iterations,
+        a.cg_iterations,
+        a.rel_residual,
+        b.hand_force,
+        b.newton_iterations,
+        b.cg_iterations,
+        b.rel_residual,
+        o_conv.hand_force,
+        o_raw.hand_force,
+        o_raw.hand_force.dot(&f) / f.norm_squared()
+    );
+    assert!(
+        a.converged && b.converged,
+        "static solves did not converge: {a:?} {b:?}"
+    );
+    // Same minimum from two starts: the gradient test (1e-9 of the load)
+    // bounds the force difference through the stiffness; measured 7e-10.
+    let rel_start = (a.hand_force - b.hand_force).norm() / f.norm();
+    assert!(
+        rel_start < 1e-7,
+        "static force depends on the start: {f:?} vs {:?}",
+        b.hand_force
+    );
+    // A converged, settled XPBD run rests there too (the 40-iteration solve's
+    // residual and the settling speed; measured 2.7e-6).
+    let rel_xpbd = (o_conv.hand_force - f).norm() / f.norm();
+    assert!(rel_xpbd < 1e-4, "settled XPBD {:?} vs static {f:?}", o_conv.hand_force);
+    // The unconverged run is measurably off, so the diagnostic separates them.
+    let rel_raw = (o_raw.hand_force - f).norm() / f.norm();
+    assert!(
+        rel_raw > 1e-2,
+        "1-iteration run unexpectedly converged: {:?}",
+        o_raw.hand_force
+    );
+    let diag = m_raw.diagnostics();
+    assert_eq!(diag.get("static_converged"), Some(&1.0), "{diag:?}");
+    assert!((diag["static_hand_force_n"] - b.hand_force.norm()).abs() <= 1e-12 * f.norm());
+}
+
+#[test]
+fn static_hand_force_is_the_derivative_of_the_minimum_energy() {
+    // Envelope theorem: at the minimum over the free nodes, dU*/dd equals the
+    // reaction along the drive (the top moves along -z, so f.z = dU*/dd),
+    // independent of any XPBD run (each start is 1 iteration, unsettled).
+    let (d, dd) = (2e-4, 2e-6);
+    let p = StaticParams::default();
+    let solve = |d: f64| {
+        compressed_model(d, 1, 1, 100)
+            .1
+            .static_equilibrium(&p)
+            .expect("compliant")
+    };
+    let (s, up, dn) = (solve(d), solve(d + dd), solve(d - dd));
+    let du = (up.elastic_energy - dn.elastic_energy) / (2.0 * dd);
+    let rel = (s.hand_force.z - du).abs() / du;
+    println!("static hand force {:?}, dU*/dd {du:.9e} N, rel {rel:.2e}", s.hand_force);
+    assert!(s.converged && up.converged && dn.converged);
+    // Central difference: O((dd/d)^2) = 1e-4 of the geometric nonlinearity
+    // (much less in practice), plus roundoff of U ~ 1e-16 U / dd; measured 1.4e-8.
+    assert!(rel < 1e-5, "f.z {} vs dU*/dd {du}: rel {rel}", s.hand_force.z);
 }
