@@ -2,7 +2,8 @@
 //! straight 3 mm tube along its axis, lying on the tube wall under gravity,
 //! pushed 1 cm in and out (period 2 s) and rotated at 1 rad/s, SDF collision and friction
 //! (C_f = 0.3) on every step, default 10 relaxation sweeps, dt = 1 ms.
-//! Target (DESIGN.md): <= 0.05 ms/step on one core.
+//! Target (DESIGN.md): <= 0.05 ms/step on one core. Two cases: the default
+//! clamp-axis boxes (`frame=1`) and the link-frame boxes (`frame=2`).
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
@@ -37,24 +38,35 @@ fn command(t: f64) -> DeviceCommand {
 fn bench(c: &mut Criterion) {
     let s = scene();
     let dt = 1e-3;
-    let f = Fidelity::parse_pairs(&["segments=100", "dt=0.001"]).unwrap();
-    let mut m = ChainmailFactory.build(&s, &f).unwrap();
-    let mut k = 0u64;
-    // warm up into contact
-    for _ in 0..2000 {
-        k += 1;
-        let t = k as f64 * dt;
-        m.step(dt, &command(t)).unwrap();
-    }
-    assert!(!m.observe().contacts.is_empty(), "bench scene has no contacts");
-    c.bench_function("chainmail_step_100_links_tube_push_rotate", |b| {
-        b.iter(|| {
+    // frame=1: the default clamp-axis boxes; frame=2: the link-frame boxes
+    // (body-frame offsets, wall contact inside the relaxation iterations),
+    // the mode a curved vessel needs
+    for (frame, name) in [
+        ("frame=1", "chainmail_step_100_links_tube_push_rotate"),
+        ("frame=2", "chainmail_step_100_links_tube_push_rotate_link_frame"),
+    ] {
+        let f = Fidelity::parse_pairs(&["segments=100", "dt=0.001", frame]).unwrap();
+        let mut m = ChainmailFactory.build(&s, &f).unwrap();
+        let mut k = 0u64;
+        // warm up into contact
+        for _ in 0..2000 {
             k += 1;
             let t = k as f64 * dt;
-            let cmd = command(t);
-            black_box(m.step(dt, &cmd).unwrap());
-        })
-    });
+            m.step(dt, &command(t)).unwrap();
+        }
+        assert!(
+            !m.observe().contacts.is_empty(),
+            "bench scene has no contacts ({frame})"
+        );
+        c.bench_function(name, |b| {
+            b.iter(|| {
+                k += 1;
+                let t = k as f64 * dt;
+                let cmd = command(t);
+                black_box(m.step(dt, &cmd).unwrap());
+            })
+        });
+    }
 }
 
 criterion_group!(benches, bench);

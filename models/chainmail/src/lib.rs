@@ -20,11 +20,23 @@
 //!   paper's rule exactly on scenes whose rod starts along +x (every rod
 //!   statics scene), and it moves rigidly with the scene, as the harness's
 //!   conformance suite requires of every model;
+//! - `frame=2` ([`BoxFrame::Link`], the default for a rod with rest
+//!   curvature) puts the boxes and rest offsets in each sponsor link's body
+//!   frame turned by the rest curvature, resolves wall contact inside the
+//!   relaxation iterations and holds a pre-curved (J) rest shape exactly.
+//!   Its boxes still bound each link's bend by about `atan(beta)`; with the
+//!   weight-calibrated `beta` the default nitinol body may bend by ~0.2 deg
+//!   per 5 mm link, so it cannot follow a 35 mm aortic arch: the wall then
+//!   compresses/stretches links past the harness's 5 % watchdog;
 //! - gravity is a displacement `g dt^2` per step, so a sag is an equilibrium
 //!   of that displacement against the boxes and the relaxation: it depends
 //!   on `dt`, `iterations` and `segments`, not only on the material;
-//! - `beta` comes from the material by [`mapping`], whose one constant is
-//!   calibrated on the gravity cantilever ([`mapping::calibration_scene`]);
+//! - `beta` comes from the material by [`mapping`]: by default
+//!   (`beta_mapping=0`) with one constant calibrated on the gravity
+//!   cantilever ([`mapping::calibration_scene`]); `beta_mapping=1` bounds
+//!   each link's bend by `Delta eps_y / r`, the largest elastic curvature of
+//!   the core (nothing fitted): it can follow a vessel but no longer sags
+//!   like the cantilever (see [`mapping`] for both and their trade-off);
 //! - no twist dynamics: a base rotation turns the first tip element about the
 //!   clamp axis and the frames carry the rotation rigidly; dead tip forces
 //!   and torques have no meaning here and are refused;
@@ -80,6 +92,7 @@ const CAPABILITIES: &[Capability] = &[
     Capability::Rod,
     Capability::Twist,
     Capability::VaryingProperties,
+    Capability::RestCurvature,
     Capability::Insertion,
     Capability::VesselContact,
     Capability::Friction,
@@ -90,11 +103,19 @@ const CAPABILITIES: &[Capability] = &[
 const KEYS: &[FidelityKey] = &[
     FidelityKey {
         name: "frame",
-        doc: "valid-box axes: 1 = base-clamp axes (default, rotation-invariant), 0 = world axes exactly as the paper writes them",
+        doc: "valid-box axes: 2 = each sponsor's link frame (rest offsets in the body frame; needed for rest curvature and curved vessels; default with rest curvature or beta_mapping=1), 1 = base-clamp axes (default otherwise, rotation-invariant), 0 = world axes exactly as the paper writes them",
     },
     FidelityKey {
         name: "beta",
         doc: "uniform shear limit beta >= 0 for every link, replacing the material mapping (alpha_min = alpha_max = 1)",
+    },
+    FidelityKey {
+        name: "beta_mapping",
+        doc: "material -> box mapping: 0 = weight-calibrated (default; calibrated on the gravity cantilever, bends ~0.2 deg per 5 mm link), 1 = navigation (per-link bend limit Delta eps_y / r from the core's recoverable strain; nothing fitted; use with frame=2 in vessels)",
+    },
+    FidelityKey {
+        name: "yield_strain",
+        doc: "recoverable strain eps_y of the core for beta_mapping=1 (default 0.06, superelastic nitinol; ~0.004 for stainless steel)",
     },
     FidelityKey {
         name: "haptic_k",
@@ -118,13 +139,23 @@ impl ModelFactory for ChainmailFactory {
     fn fidelity_keys(&self) -> &'static [FidelityKey] {
         KEYS
     }
-    fn default_fidelity(&self, _scene: &Scene) -> Fidelity {
-        Fidelity {
+    /// Segments, dt and sweeps as the calibration used them; a rod with rest
+    /// curvature gets the link-frame boxes (`frame=2`), the only frame that
+    /// can hold a curved rest shape.
+    fn default_fidelity(&self, scene: &Scene) -> Fidelity {
+        let mut f = Fidelity {
             segments: Some(DEFAULT_SEGMENTS),
             dt: Some(DEFAULT_DT),
             iterations: Some(DEFAULT_ITERATIONS),
             ..Default::default()
+        };
+        let curved = scene
+            .rods()
+            .any(|r| r.sections.iter().any(|s| s.rest_curvature != [0.0, 0.0]));
+        if curved {
+            f.extras.insert("frame".into(), 2.0);
         }
+        f
     }
 
     fn check(&self, scene: &Scene) -> Result<(), Unsupported> {
@@ -154,8 +185,26 @@ impl ModelFactory for ChainmailFactory {
             .check_extras(KEYS)
             .map_err(|e| BuildError::bad("fidelity", e.to_string()))?;
         let f = self.default_fidelity(scene).merged(fidelity);
-        let frame = BoxFrame::from_code(f.extra("frame", 1.0))
-            .ok_or_else(|| BuildError::bad("frame", format!("must be 0 or 1, got {}", f.extra("frame", 1.0))))?;
+        let beta_mapping = mapping::BetaMapping::from_codes(
+            f.extra("beta_mapping", 0.0),
+            f.extra("yield_strain", mapping::NITINOL_RECOVERABLE_STRAIN),
+        )
+        .map_err(|e| BuildError::bad("beta_mapping", e))?;
+        // the navigation mapping bounds the bend between successive links:
+        // only the link-frame boxes mean that, so it defaults to them
+        let frame_default = match beta_mapping {
+            mapping::BetaMapping::Navigation { .. } => 2.0,
+            mapping::BetaMapping::Weight => 1.0,
+        };
+        let frame_code = f.extra("frame", frame_default);
+        let frame = BoxFrame::from_code(frame_code)
+            .ok_or_else(|| BuildError::bad("frame", format!("must be 0, 1 or 2, got {frame_code}")))?;
+        let rod = scene.rods().next().expect("checked: one rod");
+        if frame != BoxFrame::Link && rod.sections.iter().any(|s| s.rest_curvature != [0.0, 0.0]) {
+            return Err(BuildError::Unsupported(Unsupported::new(
+                "rest curvature needs the link-frame boxes (frame=2): world/base-axis boxes keep every link near the clamp direction",
+            )));
+        }
         let beta_override = f.extras.get("beta").copied();
         if let Some(b) = beta_override
             && (b.is_nan() || b < 0.0)
@@ -168,10 +217,10 @@ impl ModelFactory for ChainmailFactory {
             dt: f.dt.unwrap_or(DEFAULT_DT),
             frame,
             beta_constant: mapping::BETA_CONSTANT,
+            beta_mapping,
             beta_override,
             haptic_k: f.extras.get("haptic_k").copied(),
         };
-        let rod = scene.rods().next().expect("checked: one rod");
         let w = ChainmailWire::new(rod, scene.gravity, &scene.environment, &cfg)
             .map_err(|e| BuildError::bad("chainmail", e))?;
         Ok(Box::new(w))

@@ -21,6 +21,46 @@
 //! r = 0.5 mm, E = 50 GPa, rho = 6450 kg/m^3, segments 20), scored on the
 //! others". [`calibrate_beta_constant`] recomputes it; a test checks it
 //! against the committed [`BETA_CONSTANT`].
+//!
+//! # Two mappings ([`BetaMapping`], fidelity extra `beta_mapping`)
+//!
+//! A geometric model has no single right mapping: the load scale decides
+//! what the boxes mean. Two are offered so that a report can show the
+//! trade-off:
+//!
+//! - `0` ([`BetaMapping::Weight`], default): the weight-calibrated mapping
+//!   above. Right sag on the gravity cantilever it was fitted to, but with
+//!   the wire's weight as load scale a 50 GPa, r = 0.445 mm body may turn by
+//!   about 0.2 deg per 5 mm link (minimum bend radius ~1.3 m): it cannot
+//!   follow a vessel.
+//! - `1` ([`BetaMapping::Navigation`]): the box admits, per link, the bend of
+//!   the largest elastic curvature the section can take,
+//!   `kappa_max = eps_y / r` (surface strain `eps_y` at the radius `r` of a
+//!   bent solid circle, Euler–Bernoulli `eps = kappa r`), so the per-link
+//!   turning limit is `theta = Delta kappa_max` ([`bend_limit`]). The exact
+//!   box for it follows from [`crate::rules::valid_box`]: with rest offset
+//!   `(Delta, 0, 0)` in the sponsor's box frame the box is
+//!   `[alpha_min Delta, alpha_max Delta] x [-beta Delta, beta Delta]^2`. The
+//!   wire is axially rigid at navigation loads (`T / (E A)` ~ `6e-5` at 2 N
+//!   for the 0.89 mm nitinol wire), so `alpha_min = alpha_max = 1`, and the
+//!   link on the box edge `(Delta, beta Delta, 0)` turns by `atan(beta)`:
+//!   `beta = tan theta` ([`navigation_link_params`]; a neighbour past that
+//!   edge in its bend plane projects onto it, test
+//!   `navigation_box_edge_is_the_intended_bend`).
+//!   The price is the box's axis-aligned shape: a link turned by `phi` is
+//!   `1 / cos phi` times its rest length (1 % at the 8 deg per 5 mm link of
+//!   a 35 mm arch; 27 % at the limit `theta` = 39 deg of the 0.89 mm wire's
+//!   5 mm links), and the square cross-section lets a link turn by
+//!   `atan(sqrt 2 tan theta)` towards a diagonal. `theta` is capped at
+//!   [`MAX_BEND_PER_LINK`] = 45 deg (`beta = 1`).
+//!   (The other exact box, `beta = sin theta`, `alpha_min = cos theta`, keeps
+//!   a link at the edge inextensible but lets every straight link shorten to
+//!   `cos theta`: measured on `arch-insertion`, a straight push then
+//!   compresses the first links by 5 % before any contact, at 0.18 s.)
+//!   `eps_y` is a stated constant, [`NITINOL_RECOVERABLE_STRAIN`] = 6 % by
+//!   default (extra `yield_strain` overrides it, e.g. 0.004 for stainless
+//!   steel). **Nothing is fitted**: no constant of this mapping is
+//!   calibrated on any scenario, so it is scored on all of them.
 
 use crate::rules::LinkParams;
 use crate::wire::{BoxFrame, ChainmailWire, WireConfig};
@@ -81,6 +121,7 @@ pub fn settled_tip_deflection(c: f64, max_steps: usize) -> Result<f64, String> {
         dt: crate::DEFAULT_DT,
         frame: BoxFrame::World,
         beta_constant: c,
+        beta_mapping: BetaMapping::Weight,
         beta_override: None,
         haptic_k: None,
     };
@@ -142,4 +183,109 @@ pub fn calibrate_beta_constant() -> Result<Calibration, String> {
         target,
         evaluations: evals + 1,
     })
+}
+
+/// Recoverable (elastic + superelastic) strain of the default guidewire core
+/// material, used by [`BetaMapping::Navigation`]: 6 %.
+///
+/// Superelastic nitinol recovers strains of 6-8 % on unloading, against
+/// well under 1 % for stainless steel (Duerig, Pelton & Stöckel 1999,
+/// "An overview of nitinol medical applications", *Materials Science and
+/// Engineering A* 273-275, 149-160); the lower end is taken because the
+/// navigation scenarios' wires are nitinol-like (50 GPa body) and the
+/// plateau ends near 6 %. For a stainless core (~0.2-0.5 %) pass
+/// `yield_strain`.
+pub const NITINOL_RECOVERABLE_STRAIN: f64 = 0.06;
+
+/// Largest per-link turning the navigation mapping admits (rad): 45 deg,
+/// `beta = 1`. Past it a link on its box edge is more than 41 % longer than
+/// at rest and the chain no longer resolves a curve.
+pub const MAX_BEND_PER_LINK: f64 = std::f64::consts::FRAC_PI_4;
+
+/// How the material parameters become `alpha_min`, `alpha_max`, `beta`
+/// (fidelity extra `beta_mapping`: 0 or 1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum BetaMapping {
+    /// `0`: load scale = the wire's weight, one constant `C` calibrated on
+    /// the gravity cantilever ([`link_params`]).
+    Weight,
+    /// `1`: bend limit per link from the largest elastic curvature
+    /// `eps_y / r` of the section ([`navigation_link_params`]); nothing
+    /// fitted.
+    Navigation {
+        /// Recoverable strain `eps_y` of the core (dimensionless, > 0).
+        yield_strain: f64,
+    },
+}
+
+impl BetaMapping {
+    /// From the fidelity extras `beta_mapping` (0 or 1) and `yield_strain`
+    /// (only read by mapping 1). Errors name the bad value.
+    pub fn from_codes(code: f64, yield_strain: f64) -> Result<BetaMapping, String> {
+        match code {
+            0.0 => Ok(BetaMapping::Weight),
+            1.0 => {
+                if !(yield_strain > 0.0 && yield_strain < 1.0) {
+                    return Err(format!("yield_strain must be in (0, 1), got {yield_strain}"));
+                }
+                Ok(BetaMapping::Navigation { yield_strain })
+            }
+            _ => Err(format!("beta_mapping must be 0 (weight) or 1 (navigation), got {code}")),
+        }
+    }
+
+    /// Link parameters of a section and link length `delta` (m) under this
+    /// mapping; `c` is the weight mapping's constant (unused by mapping 1).
+    pub fn link_params(&self, sec: &RodSection, delta: f64, c: f64) -> LinkParams {
+        match *self {
+            BetaMapping::Weight => link_params(sec, delta, c),
+            BetaMapping::Navigation { yield_strain } => navigation_link_params(sec, delta, yield_strain),
+        }
+    }
+}
+
+/// Per-link turning limit of the navigation mapping (rad):
+/// `theta = Delta eps_y / r`, the turning of a link of length `Delta` (m) at
+/// the largest elastic curvature `kappa_max = eps_y / r` of a solid circle of
+/// radius `r` (bending strain `kappa r` at the surface), capped at
+/// [`MAX_BEND_PER_LINK`].
+pub fn bend_limit(sec: &RodSection, delta: f64, yield_strain: f64) -> f64 {
+    (delta * yield_strain / sec.radius).min(MAX_BEND_PER_LINK)
+}
+
+/// The navigation mapping's box: `beta = tan theta`,
+/// `alpha_min = alpha_max = 1`, with `theta` from [`bend_limit`]. The box
+/// edge `(Delta, Delta tan theta, 0)` is then a link turned by exactly
+/// `theta` (of length `Delta / cos theta`).
+pub fn navigation_link_params(sec: &RodSection, delta: f64, yield_strain: f64) -> LinkParams {
+    LinkParams {
+        alpha_min: 1.0,
+        alpha_max: 1.0,
+        beta: bend_limit(sec, delta, yield_strain).tan(),
+    }
+}
+
+/// Largest turning (rad) of a link of length `len` (m) whose rest offset is
+/// `(delta, 0, 0)` in its box frame, turning within one box plane: the box
+/// limits the lateral offset to `beta delta` and the axial one to
+/// `[alpha_min delta, alpha_max delta]`, so the angle is
+/// `atan2(min(beta delta, len), sqrt(len^2 - lateral^2))` when that axial
+/// length fits in the box, and `acos(alpha_min delta / len)` when the
+/// compression limit binds first. `None` if no point of the box has length
+/// `len`. The closed form against which the mappings are tested.
+pub fn max_bend_in_box(p: &LinkParams, delta: f64, len: f64) -> Option<f64> {
+    let lat = (p.beta * delta).min(len);
+    let ax = (len * len - lat * lat).sqrt();
+    let (lo, hi) = (p.alpha_min * delta, p.alpha_max * delta);
+    if ax > hi * (1.0 + 1e-12) {
+        // even the widest lateral offset leaves the link too long
+        return None;
+    }
+    if ax >= lo {
+        Some(lat.atan2(ax))
+    } else if len >= lo {
+        Some((lo / len).min(1.0).acos())
+    } else {
+        None
+    }
 }

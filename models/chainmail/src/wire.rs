@@ -24,6 +24,7 @@
 //!    then the paper's friction factor removes part of its tangential motion
 //!    this step ([`crate::rules::friction_correction`]).
 
+use crate::mapping::BetaMapping;
 use crate::rules::{LinkParams, box_violation, friction_correction, project_into_box, relaxation_target};
 use std::sync::Arc;
 use surgbench_core::frames::{parallel_transport, rotate_about};
@@ -43,14 +44,22 @@ pub enum BoxFrame {
     /// `World` for the harness's canonical scenes (clamp at the origin along
     /// +x), and moves rigidly with the scene.
     Base,
+    /// Axes of the sponsor's link (its material frame `t, d1, d2`,
+    /// parallel-transported from the clamp), turned by the rest curvature at
+    /// the sponsor: the rest offsets `delta_i` live in the link's body frame,
+    /// so the wire can follow a curved vessel (each link may turn by about
+    /// `atan(beta)` from its predecessor, not from the clamp) and a pre-curved
+    /// rest shape is a shape the rules preserve. Rotation-invariant.
+    Link,
 }
 
 impl BoxFrame {
-    /// From the fidelity extra `frame` (0 world, 1 base).
+    /// From the fidelity extra `frame` (0 world, 1 base, 2 link).
     pub fn from_code(c: f64) -> Option<BoxFrame> {
         match c {
             0.0 => Some(BoxFrame::World),
             1.0 => Some(BoxFrame::Base),
+            2.0 => Some(BoxFrame::Link),
             _ => None,
         }
     }
@@ -67,8 +76,11 @@ pub struct WireConfig {
     pub dt: f64,
     /// Frame of the valid boxes.
     pub frame: BoxFrame,
-    /// Constant `C` of the material mapping ([`crate::mapping`]).
+    /// Constant `C` of the weight mapping ([`crate::mapping`]).
     pub beta_constant: f64,
+    /// Which material mapping gives the link parameters
+    /// ([`crate::mapping::BetaMapping`]).
+    pub beta_mapping: BetaMapping,
     /// A uniform `beta` for every link, replacing the material mapping
     /// (`alpha_min = alpha_max = 1` then).
     pub beta_override: Option<f64>,
@@ -86,12 +98,20 @@ pub struct ChainmailWire {
     dt: f64,
     delta: f64,
     beta_constant: f64,
+    beta_mapping: BetaMapping,
     beta_override: Option<f64>,
     rod: RodBody,
     base: Iso3,
     /// Base rotation as a matrix and its x axis (cached from `base`).
     rb: Mat3,
     tb: Vec3,
+    /// Material director `d1` at the clamp: the base pose's local y turned by
+    /// the commanded rotation about the clamp axis.
+    d1b: Vec3,
+    /// Rest turning at every node (`Link` frame): the rest Darboux vector
+    /// integrated over the node's Voronoi interval, components on `(d1, d2)`
+    /// (rad).
+    turn: Vec<[f64; 2]>,
     /// Material arclength of every node at zero insertion (m).
     sigma: Vec<f64>,
     x: Vec<Vec3>,
@@ -112,6 +132,9 @@ pub struct ChainmailWire {
     first_link_len: f64,
     contacts: Vec<ContactObs>,
     hand_force: Vec3,
+    /// Normal wall corrections accumulated per node during this step's
+    /// relaxation iterations (`Link` frame), m.
+    wall_depth: Vec<f64>,
 }
 
 fn unit_or(v: Vec3, fallback: Vec3) -> Vec3 {
@@ -141,6 +164,11 @@ impl ChainmailWire {
         if !(cfg.beta_constant >= 0.0 && cfg.beta_constant.is_finite()) {
             return Err(format!("beta constant must be >= 0, got {}", cfg.beta_constant));
         }
+        if let BetaMapping::Navigation { yield_strain } = cfg.beta_mapping
+            && !(yield_strain > 0.0 && yield_strain < 1.0)
+        {
+            return Err(format!("yield_strain must be in (0, 1), got {yield_strain}"));
+        }
         if let Some(b) = cfg.beta_override
             && !(b >= 0.0 && b.is_finite())
         {
@@ -167,11 +195,14 @@ impl ChainmailWire {
             dt: cfg.dt,
             delta,
             beta_constant: cfg.beta_constant,
+            beta_mapping: cfg.beta_mapping,
             beta_override: cfg.beta_override,
             rod: rod.clone(),
             base,
             rb: base.rotation.to_rotation_matrix().into_inner(),
             tb: base.rotation * Vec3::x(),
+            d1b: base.rotation * Vec3::y(),
+            turn: Vec::new(),
             sigma: Vec::new(),
             x: Vec::new(),
             x_prev: Vec::new(),
@@ -189,13 +220,23 @@ impl ChainmailWire {
             first_link_len: delta,
             contacts: Vec::new(),
             hand_force: Vec3::zeros(),
+            wall_depth: Vec::new(),
         };
+        let curved = rod.sections.iter().any(|s| s.rest_curvature != [0.0, 0.0]);
+        if curved && cfg.frame != BoxFrame::Link {
+            return Err(format!(
+                "rest curvature needs the link-frame boxes (frame=2): the {:?} boxes keep every link near the clamp direction",
+                cfg.frame
+            ));
+        }
         // ghost node one link behind the clamp, the clamp, then the free nodes
         for k in 0..=cfg.segments + 1 {
             let s = (k as f64 - 1.0) * delta;
             w.sigma.push(s);
+            w.turn.push(w.turn_at(s));
             w.x.push(w.rest_point(s));
         }
+        w.x = w.rest_shape();
         for k in 0..=cfg.segments {
             let p = w.link_params_at(0.5 * (w.sigma[k] + w.sigma[k + 1]))?;
             w.links.push(p);
@@ -211,7 +252,9 @@ impl ChainmailWire {
                 alpha_max: 1.0,
                 beta,
             },
-            None => crate::mapping::link_params(self.rod.section_at(s.max(0.0)), self.delta, self.beta_constant),
+            None => self
+                .beta_mapping
+                .link_params(self.rod.section_at(s.max(0.0)), self.delta, self.beta_constant),
         };
         p.validate()?;
         Ok(p)
@@ -219,6 +262,83 @@ impl ChainmailWire {
 
     fn t_base(&self) -> Vec3 {
         self.tb
+    }
+
+    /// Rest turning of the node at material arclength `s` (rad, on
+    /// `(d1, d2)`): `int kappa ds` over `[s - Delta/2, s + Delta/2]`, the
+    /// node's Voronoi interval, clipped to the rod (material fed in behind
+    /// the clamp carries the first section's curvature). Summed over the
+    /// nodes this integrates the rest curvature exactly, so the direction of
+    /// link `j` is the rest tangent at its midpoint.
+    fn turn_at(&self, s: f64) -> [f64; 2] {
+        let (a, b) = (s - 0.5 * self.delta, (s + 0.5 * self.delta).min(self.rod.length));
+        let mut out = [0.0; 2];
+        let mut start = f64::NEG_INFINITY;
+        for sec in &self.rod.sections {
+            let lo = a.max(start);
+            let hi = b.min(sec.until);
+            if hi > lo {
+                out[0] += sec.rest_curvature[0] * (hi - lo);
+                out[1] += sec.rest_curvature[1] * (hi - lo);
+            }
+            start = sec.until;
+        }
+        out
+    }
+
+    /// Turn the frame `(t, d1)` by the rest turning `k` (rad on `(d1, d2)`,
+    /// `d2 = t x d1`), forwards (`sign = 1`) or backwards (`-1`): rotation
+    /// about `k1 d1 + k2 d2` by its norm (Kirchhoff: `t' = Omega x t`).
+    fn turned(t: &Vec3, d1: &Vec3, k: &[f64; 2], sign: f64) -> (Vec3, Vec3) {
+        if k[0] == 0.0 && k[1] == 0.0 {
+            return (*t, *d1);
+        }
+        let om = d1 * k[0] + t.cross(d1) * k[1];
+        let a = om.norm();
+        let axis = om / a;
+        (rotate_about(t, &axis, sign * a), rotate_about(d1, &axis, sign * a))
+    }
+
+    /// Material frames `(t, d1)` of every link, parallel-transported from the
+    /// clamp: the prescribed links lie along the clamp axis with `d1b`; each
+    /// free link's `d1` is the rest-turned `d1` of its predecessor
+    /// transported onto its actual tangent.
+    fn link_frames(&self) -> Vec<(Vec3, Vec3)> {
+        let n = self.x.len();
+        let mut out = Vec::with_capacity(n - 1);
+        let (mut t, mut d1) = (self.tb, self.d1b);
+        for j in 0..n - 1 {
+            if j + 1 < self.n_fixed {
+                out.push((self.tb, self.d1b));
+                continue;
+            }
+            let (tp, dp) = Self::turned(&t, &d1, &self.turn[j], 1.0);
+            let tn = unit_or(self.x[j + 1] - self.x[j], tp);
+            d1 = parallel_transport(&dp, &tp, &tn);
+            d1 = unit_or(d1 - tn * tn.dot(&d1), d1);
+            t = tn;
+            out.push((t, d1));
+        }
+        out
+    }
+
+    /// Box axes `[t, d1, d2]` as columns.
+    fn axes(t: &Vec3, d1: &Vec3) -> Mat3 {
+        Mat3::from_columns(&[*t, *d1, t.cross(d1)])
+    }
+
+    /// Rest shape at the current insertion (m): straight on the clamp axis
+    /// up to the clamp, then each free link along its predecessor's direction
+    /// turned by the rest turning of the node between them.
+    fn rest_shape(&self) -> Vec<Vec3> {
+        let n = self.x.len();
+        let mut out: Vec<Vec3> = self.sigma.iter().map(|&s| self.rest_point(s)).collect();
+        let (mut t, mut d1) = (self.tb, self.d1b);
+        for j in self.n_fixed.max(1) - 1..n - 1 {
+            (t, d1) = Self::turned(&t, &d1, &self.turn[j], 1.0);
+            out[j + 1] = out[j] + t * self.delta;
+        }
+        out
     }
 
     /// Straight rest position of material arclength `s` at the current
@@ -260,8 +380,26 @@ impl ChainmailWire {
         let s = dir as f64 * self.delta;
         match self.frame {
             BoxFrame::World => (Mat3::identity(), self.tb * s),
-            BoxFrame::Base => (self.rb, Vec3::new(s, 0.0, 0.0)),
+            BoxFrame::Base | BoxFrame::Link => (self.rb, Vec3::new(s, 0.0, 0.0)),
         }
+    }
+
+    /// Link-frame box of neighbour `i + dir` around sponsor `i` from the link
+    /// frames `fr`: towards the tip, the frame of link `i - 1` turned
+    /// forwards at node `i`; towards the base, the frame of link `i` turned
+    /// backwards at node `i` (the tip node, with no link beyond, uses its
+    /// own link: only the length is then bounded).
+    fn link_box(&self, i: usize, dir: isize, fr: &[(Vec3, Vec3)]) -> (Mat3, Vec3) {
+        let (t, d1) = if dir > 0 {
+            let (t, d1) = fr[i - 1];
+            Self::turned(&t, &d1, &self.turn[i], 1.0)
+        } else if i < fr.len() {
+            let (t, d1) = fr[i];
+            Self::turned(&t, &d1, &self.turn[i], -1.0)
+        } else {
+            fr[i - 1]
+        };
+        (Self::axes(&t, &d1), Vec3::new(dir as f64 * self.delta, 0.0, 0.0))
     }
 
     fn link_of(i: usize, dir: isize) -> usize {
@@ -275,7 +413,11 @@ impl ChainmailWire {
         if j < self.n_fixed {
             return false;
         }
-        let (f, d) = self.box_geometry(dir);
+        let (f, d) = if self.frame == BoxFrame::Link {
+            self.link_box(i, dir, &self.link_frames())
+        } else {
+            self.box_geometry(dir)
+        };
         let (q, moved) = project_into_box(&self.x[i], &self.x[j], &d, &f, &self.links[Self::link_of(i, dir)]);
         self.x[j] = q;
         moved
@@ -305,8 +447,25 @@ impl ChainmailWire {
     /// displaced (gravity, flow), each one is checked against its base-side
     /// neighbour in order from the clamp to the tip.
     fn sweep_from_base(&mut self) {
+        if self.frame != BoxFrame::Link {
+            for i in self.n_fixed - 1..self.x.len() - 1 {
+                self.enforce(i, 1);
+            }
+            return;
+        }
+        // carry the frame of link i - 1 along (it depends on nodes already
+        // enforced in this sweep only)
+        let (mut t, mut d1) = (self.tb, self.d1b);
         for i in self.n_fixed - 1..self.x.len() - 1 {
-            self.enforce(i, 1);
+            let (tp, dp) = Self::turned(&t, &d1, &self.turn[i], 1.0);
+            let f = Self::axes(&tp, &dp);
+            let d = Vec3::new(self.delta, 0.0, 0.0);
+            let (q, _) = project_into_box(&self.x[i], &self.x[i + 1], &d, &f, &self.links[i]);
+            self.x[i + 1] = q;
+            let tn = unit_or(q - self.x[i], tp);
+            d1 = parallel_transport(&dp, &tp, &tn);
+            d1 = unit_or(d1 - tn * tn.dot(&d1), d1);
+            t = tn;
         }
     }
 
@@ -330,10 +489,65 @@ impl ChainmailWire {
     /// link's term `||P_j+1 - P_j - delta||^2` appears once per end), so the
     /// energy never increases.
     pub fn relax_sweep(&mut self) {
+        if self.frame == BoxFrame::Link {
+            self.relax_sweep_link();
+            return;
+        }
         let mut q = [Vec3::zeros(); 2];
         for i in self.n_fixed..self.x.len() {
             let m = self.predictions(i, &mut q);
             self.x[i] = relaxation_target(&q[..m]);
+        }
+    }
+
+    /// Link-frame relaxation sweep, base to tip. The paper's rule with
+    /// body-frame offsets, `P* = (Q_1 + Q_2)/2` with the straight
+    /// continuations `Q_1 = 2 P_{i-1} - P_{i-2}` and `Q_2 = 2 P_{i+1} - P_{i+2}`
+    /// (linearized), multiplies a zigzag `(-1)^k a` by `-3` per sweep and
+    /// diverges (seen on `arch-insertion`). So each node goes to the
+    /// minimizer of the three body-frame residuals it appears in,
+    /// `P* = (Q_1 + Q_2 + 4 Q_M) / 6` (weights from the discrete bending
+    /// form `sum_i ||P_{i+1} - 2 P_i + P_{i-1}||^2`, whose Gauss–Seidel
+    /// converges): `Q_1 = P_{i-1} + Delta t'` (link `i - 2`'s tangent turned
+    /// forwards at node `i - 1`), `Q_2 = P_{i+1} - Delta t''` (link `i + 1`'s
+    /// tangent turned backwards at node `i + 1`), and the vertex prediction
+    /// `Q_M = (P_{i-1} + P_{i+1})/2 + Delta (R(-phi/2) c - R(phi/2) c)/2`
+    /// (`c` the chord direction, `phi` the rest turning at node `i`: the
+    /// vertex of two rest links around that chord). Terms that do not exist
+    /// at the tip drop out with their weights.
+    fn relax_sweep_link(&mut self) {
+        let n = self.x.len();
+        let fr = self.link_frames();
+        let (mut t, mut d1) = (self.tb, self.d1b);
+        for i in self.n_fixed..n {
+            let (tp, dp) = Self::turned(&t, &d1, &self.turn[i - 1], 1.0);
+            let mut sum = self.x[i - 1] + tp * self.delta;
+            let mut w = 1.0;
+            if i + 1 < n {
+                let c = unit_or(self.x[i + 1] - self.x[i - 1], tp);
+                let k = self.turn[i];
+                let mut qm = 0.5 * (self.x[i - 1] + self.x[i + 1]);
+                if k != [0.0, 0.0] {
+                    let om = dp * k[0] + tp.cross(&dp) * k[1];
+                    let a = om.norm();
+                    let axis = om / a;
+                    let d = rotate_about(&c, &axis, -0.5 * a) - rotate_about(&c, &axis, 0.5 * a);
+                    qm += d * (0.5 * self.delta);
+                }
+                sum += 4.0 * qm;
+                w += 4.0;
+            }
+            if i + 2 < n {
+                let (tq, _) = Self::turned(&fr[i + 1].0, &fr[i + 1].1, &self.turn[i + 1], -1.0);
+                sum += self.x[i + 1] - tq * self.delta;
+                w += 1.0;
+            }
+            let p = sum / w;
+            self.x[i] = p;
+            let tn = unit_or(p - self.x[i - 1], tp);
+            d1 = parallel_transport(&dp, &tp, &tn);
+            d1 = unit_or(d1 - tn * tn.dot(&d1), d1);
+            t = tn;
         }
     }
 
@@ -359,8 +573,17 @@ impl ChainmailWire {
     /// Largest box violation over all links, relative to `Delta`.
     pub fn box_residual(&self) -> f64 {
         let mut r: f64 = 0.0;
+        let fr = if self.frame == BoxFrame::Link {
+            self.link_frames()
+        } else {
+            Vec::new()
+        };
         for i in 1..self.x.len() - 1 {
-            let (f, d) = self.box_geometry(1);
+            let (f, d) = if self.frame == BoxFrame::Link {
+                self.link_box(i, 1, &fr)
+            } else {
+                self.box_geometry(1)
+            };
             r = r.max(box_violation(&self.x[i], &self.x[i + 1], &d, &f, &self.links[i]));
         }
         r / self.delta
@@ -374,6 +597,7 @@ impl ChainmailWire {
         // retraction: drop elements that went more than one link behind
         while self.x.len() > 2 && fixed(self, 2) {
             self.sigma.remove(0);
+            self.turn.remove(0);
             self.x.remove(0);
             self.x_prev.remove(0);
             self.links.remove(0);
@@ -384,6 +608,8 @@ impl ChainmailWire {
             let p = self.link_params_at(s + 0.5 * self.delta)?;
             let r = self.rest_point(s);
             self.sigma.insert(0, s);
+            let k = self.turn_at(s);
+            self.turn.insert(0, k);
             self.x.insert(0, r);
             self.x_prev.insert(0, r);
             self.links.insert(0, p);
@@ -413,9 +639,11 @@ impl ChainmailWire {
         }
     }
 
-    fn collide(&mut self) {
-        self.contacts.clear();
-        self.hand_force = Vec3::zeros();
+    /// Normal wall projection inside the relaxation loop (`Link` frame):
+    /// every free element closer than `epsilon` moves by `(phi + epsilon)`
+    /// along `-grad phi`; the corrections add up in `wall_depth` for the
+    /// friction factor at the end of the step.
+    fn wall_pass(&mut self) {
         let Some(sdf) = self.vessel.clone() else {
             return;
         };
@@ -430,9 +658,35 @@ impl ChainmailWire {
             if gn.is_nan() || gn <= 0.0 {
                 continue;
             }
+            self.x[i] -= g * ((phi + eps) / gn);
+            self.wall_depth[i] += phi + eps;
+        }
+    }
+
+    fn collide(&mut self) {
+        self.contacts.clear();
+        self.hand_force = Vec3::zeros();
+        let Some(sdf) = self.vessel.clone() else {
+            return;
+        };
+        let eps = self.margin;
+        // a node the in-loop wall passes left on the wall (to rounding)
+        let tol = 1e-9 * self.delta;
+        for i in self.n_fixed..self.x.len() {
+            let phi = sdf.distance(&self.x[i]);
+            let prior = self.wall_depth.get(i).copied().unwrap_or(0.0);
+            if phi <= -eps - if prior > 0.0 { tol } else { 0.0 } {
+                continue;
+            }
+            let g = sdf.gradient(&self.x[i]);
+            let gn = g.norm();
+            if gn.is_nan() || gn <= 0.0 {
+                continue;
+            }
             let n = g / gn;
-            let depth = phi + eps;
+            let depth = (phi + eps).max(0.0);
             let dp_n = -n * depth;
+            let depth = depth + prior;
             self.x[i] += dp_n;
             let m = self.x[i] - self.x_prev[i];
             let m_t = m - n * m.dot(&n);
@@ -481,6 +735,7 @@ impl ChainmailWire {
         self.insertion = cmd.insertion;
         let d_rot = cmd.rotation - self.rotation;
         self.rotation = cmd.rotation;
+        self.d1b = rotate_about(&self.rb.column(1).into_owned(), &self.tb, self.rotation);
         self.update_feed()
             .map_err(|reason| SimError::SolverFailed { t: self.time, reason })?;
 
@@ -492,7 +747,9 @@ impl ChainmailWire {
             }
             self.x[i] += d;
         }
-        if d_rot != 0.0 {
+        // in the link frame the rotation reaches the wire through `d1b`: the
+        // frames carry it rigidly to every link (and turn a curved tip)
+        if d_rot != 0.0 && self.frame != BoxFrame::Link {
             let k = self.tip_element();
             let o = self.x[self.n_fixed - 1];
             let axis = unit_or(o - self.x[self.n_fixed - 2], self.t_base());
@@ -500,8 +757,22 @@ impl ChainmailWire {
             self.propagate_from(k);
         }
         self.sweep_from_base();
-        for _ in 0..self.iterations {
-            self.relax_sweep();
+        if self.frame == BoxFrame::Link {
+            // contact resolved inside the iterations, as constraints are in
+            // position-based solvers: relax, restore the boxes (link length
+            // and bend), leave the wall; friction once at the end on the
+            // accumulated normal correction
+            self.wall_depth.clear();
+            self.wall_depth.resize(self.x.len(), 0.0);
+            for _ in 0..self.iterations {
+                self.relax_sweep();
+                self.sweep_from_base();
+                self.wall_pass();
+            }
+        } else {
+            for _ in 0..self.iterations {
+                self.relax_sweep();
+            }
         }
         self.collide();
         self.check_finite()?;
@@ -519,6 +790,13 @@ impl ChainmailWire {
     }
 
     fn frames(&self) -> Vec<Mat3> {
+        if self.frame == BoxFrame::Link {
+            return self
+                .link_frames()
+                .iter()
+                .map(|(t, d1)| Mat3::from_columns(&[*d1, t.cross(d1), *t]))
+                .collect();
+        }
         let rb = self.rb;
         let tb = self.tb;
         let mut d1 = rotate_about(&rb.column(1).into_owned(), &tb, self.rotation);
@@ -545,7 +823,7 @@ impl ChainmailWire {
         }
         let rod = RodObs {
             arclength: self.sigma.iter().map(|s| s + self.insertion).collect(),
-            rest: self.sigma.iter().map(|&s| self.rest_point(s)).collect(),
+            rest: self.rest_shape(),
             nodes: self.x.clone(),
             velocities: self
                 .x
