@@ -79,3 +79,30 @@ pub fn csv_rows(rel: &str) -> Vec<Vec<f64>> {
         })
         .collect()
 }
+
+/// Truth-cube edge (m): Kerdok et al. 2003's 80 mm silicone cube.
+pub const TRUTH_CUBE_EDGE: f64 = 0.08;
+
+/// The truth-cube scene (comparisons builds the same) with `n` cells per
+/// edge (level 0: `n = 4`): E = 15.3 kPa, nu = 0.499, bottom plate fixed,
+/// top plate driven down by `strain` of the edge.
+pub fn truth_cube_body(strain: f64, n: usize) -> surgbench_core::TissueBody {
+    use surgbench_core::{TissueBody, mesh};
+    let edge = TRUTH_CUBE_EDGE;
+    let m = mesh::block(Vec3::new(edge, edge, edge), [n, n, n]);
+    let tol = 1e-9 * edge;
+    let mut b = TissueBody::new(
+        m.clone(),
+        SolidMaterial {
+            youngs_modulus: 15.3e3,
+            poisson_ratio: 0.499,
+            density: 980.0,
+        },
+    );
+    b.fixed_nodes = mesh::nodes_on_plane(&m, 2, 0.0, tol);
+    b.driven_nodes = mesh::nodes_on_plane(&m, 2, edge, tol)
+        .into_iter()
+        .map(|i| (i, Vec3::new(0.0, 0.0, -strain * edge)))
+        .collect();
+    b
+}
