@@ -28,6 +28,13 @@
 //!   weight-calibrated `beta` the default nitinol body may bend by ~0.2 deg
 //!   per 5 mm link, so it cannot follow a 35 mm aortic arch: the wall then
 //!   compresses/stretches links past the harness's 5 % watchdog;
+//!   After friction, one length-restoring pass (boxes swept from the clamp,
+//!   then the wall) keeps friction from compressing links; on
+//!   `coronary-tortuous` (`beta_mapping=1`, 40 segments) the stretch
+//!   watchdog still trips at 43.7 s: the tip meets the wall ~25 deg head-on
+//!   while its box lets it turn ~6 deg from its neighbour, so no position
+//!   of the tip satisfies both box and wall and the wall wins (tip link
+//!   -7.9 %);
 //! - gravity is a displacement `g dt^2` per step, so a sag is an equilibrium
 //!   of that displacement against the boxes and the relaxation: it depends
 //!   on `dt`, `iterations` and `segments`, not only on the material;
