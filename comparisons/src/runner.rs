@@ -12,7 +12,7 @@ use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
-use surgbench_core::{BuildError, DeviceCommand, Fidelity, Iso3, ModelFactory, Observation, RodBody, Scene, Vec3};
+use surgbench_core::{BuildError, DeviceCommand, Fidelity, Iso3, LoadRamp, ModelFactory, Observation, Scene, Vec3};
 
 /// A run cannot count as settled before this many steps: a model at rest
 /// before the load acts must not pass for one at equilibrium.
@@ -160,10 +160,20 @@ pub fn peak_rss_mb() -> Option<f64> {
 pub struct HandWork {
     drive: Drive,
     last: Option<(Vec3, UnitQuaternion<f64>, Vec3, Vec3)>,
-    /// The one rod's ramped tip load and its last (scale, tip position).
-    ramp: Option<(RodBody, Option<(f64, Vec3)>)>,
+    /// The one rod's ramped tip load, if any.
+    ramp: Option<RampedLoad>,
     /// Work done so far (J).
     pub work: f64,
+}
+
+/// A rod's ramped tip load as the energy watchdog accounts it.
+#[derive(Debug, Clone)]
+struct RampedLoad {
+    ramp: LoadRamp,
+    /// Full tip force (N, world frame).
+    force: Vec3,
+    /// Scale and tip position (m) at the last recorded step.
+    last: Option<(f64, Vec3)>,
 }
 
 /// How the hand moves the bodies.
@@ -195,7 +205,11 @@ impl HandWork {
             _ => Drive::Unknown,
         };
         let ramp = match rods.as_slice() {
-            [rod] if rod.tip_load_ramp.is_some() && rod.tip_force != Vec3::zeros() => Some(((*rod).clone(), None)),
+            [rod] if rod.tip_force != Vec3::zeros() => rod.tip_load_ramp.clone().map(|ramp| RampedLoad {
+                ramp,
+                force: rod.tip_force,
+                last: None,
+            }),
             _ => None,
         };
         Self {
@@ -223,12 +237,12 @@ impl HandWork {
     /// Account for the step that ended with `cmd` applied and `obs` observed
     /// (call once with the initial command and observation first).
     pub fn record(&mut self, cmd: &DeviceCommand, obs: &Observation) {
-        if let (Some((rod, last)), Some(tip)) = (&mut self.ramp, obs.rods.first().map(|r| r.tip())) {
-            let s = rod.tip_load_scale(obs.time);
-            if let Some((s0, tip0)) = *last {
-                self.work -= (s - s0) * rod.tip_force.dot(&(0.5 * (tip + tip0)));
+        if let (Some(r), Some(tip)) = (&mut self.ramp, obs.rods.first().map(|r| r.tip())) {
+            let s = r.ramp.scale_at(obs.time);
+            if let Some((s0, tip0)) = r.last {
+                self.work -= (s - s0) * r.force.dot(&(0.5 * (tip + tip0)));
             }
-            *last = Some((s, tip));
+            r.last = Some((s, tip));
         }
         let Some((x, q)) = self.clamp(cmd) else {
             return;

@@ -274,11 +274,6 @@ struct PieceHit {
     point: Vec3,
     /// Derivative of `s` with respect to the query point (zero at the ends).
     ds_dp: Vec3,
-    /// Unit tangent of the centreline at the closest point.
-    tangent: Vec3,
-    /// Second derivative of `s` with respect to the query point (zero on
-    /// lines and at the ends).
-    dds_dp: Mat3,
 }
 
 impl Piece {
@@ -330,24 +325,18 @@ impl Piece {
                         s: 0.0,
                         point: a,
                         ds_dp: Vec3::zeros(),
-                        tangent: t,
-                        dds_dp: Mat3::zeros(),
                     }
                 } else if s >= l {
                     PieceHit {
                         s: l,
                         point: b,
                         ds_dp: Vec3::zeros(),
-                        tangent: t,
-                        dds_dp: Mat3::zeros(),
                     }
                 } else {
                     PieceHit {
                         s,
                         point: a + t * s,
                         ds_dp: t,
-                        tangent: t,
-                        dds_dp: Mat3::zeros(),
                     }
                 }
             }
@@ -369,16 +358,12 @@ impl Piece {
                             s: 0.0,
                             point: start,
                             ds_dp: Vec3::zeros(),
-                            tangent: self.tangent(0.0),
-                            dds_dp: Mat3::zeros(),
                         }
                     } else {
                         PieceHit {
                             s: self.length(),
                             point: end,
                             ds_dp: Vec3::zeros(),
-                            tangent: self.tangent(self.length()),
-                            dds_dp: Mat3::zeros(),
                         }
                     }
                 };
@@ -392,22 +377,35 @@ impl Piece {
                 if phi <= angle {
                     let (sn, cs) = phi.sin_cos();
                     let e_phi = v * cs - u * sn;
-                    let e_rho = u * cs + v * sn;
-                    let sym = e_rho * e_phi.transpose() + e_phi * e_rho.transpose();
                     PieceHit {
                         s: radius * phi,
-                        point: center + e_rho * radius,
+                        point: center + (u * cs + v * sn) * radius,
                         // d(phi)/dp = e_phi / rho (polar coordinates in the arc's plane).
                         ds_dp: e_phi * (radius / rho),
-                        tangent: e_phi,
-                        // d(e_phi / rho)/dp = -(e_rho e_phi^T + e_phi e_rho^T) / rho^2
-                        // (d e_phi / d phi = -e_rho, grad rho = e_rho).
-                        dds_dp: sym * (-radius / (rho * rho)),
                     }
                 } else {
                     ends(p)
                 }
             }
+        }
+    }
+
+    /// Unit tangent at `hit` and the second derivative of `s` with respect
+    /// to the query point there (for [`SweptTube`]'s Hessian only, so the
+    /// distance queries do not pay for it). Zero on lines and at the ends;
+    /// inside an arc, with `ds/dp = e_phi R / rho`,
+    /// `d2s/dp2 = -R (e_rho e_phi^T + e_phi e_rho^T) / rho^2`
+    /// (`d e_phi / d phi = -e_rho`, `grad rho = e_rho`).
+    fn second_order(&self, hit: &PieceHit) -> (Vec3, Mat3) {
+        match *self {
+            Piece::Arc { center, radius, .. } if hit.ds_dp != Vec3::zeros() => {
+                let r_over_rho = hit.ds_dp.norm();
+                let e_phi = hit.ds_dp / r_over_rho;
+                let e_rho = (hit.point - center) / radius;
+                let sym = e_rho * e_phi.transpose() + e_phi * e_rho.transpose();
+                (e_phi, sym * (-r_over_rho * r_over_rho / radius))
+            }
+            _ => (self.tangent(hit.s), Mat3::zeros()),
         }
     }
 
@@ -709,8 +707,6 @@ impl SweptTube {
             s: 0.0,
             point: Vec3::zeros(),
             ds_dp: Vec3::zeros(),
-            tangent: Vec3::zeros(),
-            dds_dp: Mat3::zeros(),
         };
         for (i, piece) in self.pieces.iter().enumerate() {
             let (c, r) = self.bounds[i];
@@ -826,9 +822,10 @@ impl Sdf for SweptTube {
         }
         let n = (p - h.point) / h.radial;
         let (_, slope) = self.radius_and_slope(h.s);
+        let (tangent, dds_dp) = self.pieces[h.piece].second_order(&hit);
         let proj = Mat3::identity() - n * n.transpose();
-        let dw = Mat3::identity() - hit.tangent * hit.ds_dp.transpose();
-        let m = proj * dw / h.radial - hit.dds_dp * slope;
+        let dw = Mat3::identity() - tangent * hit.ds_dp.transpose();
+        let m = proj * dw / h.radial - dds_dp * slope;
         (m + m.transpose()) * 0.5
     }
 }

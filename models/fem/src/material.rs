@@ -304,21 +304,9 @@ mod tests {
 
     use surgbench_core::rng::SplitMix64 as SplitMix;
 
-    /// Signed draws for test inputs.
-    trait Signed {
-        /// Uniform in [-1, 1).
-        fn next_f64(&mut self) -> f64;
-        /// Matrix with entries uniform in [-amp, amp).
-        fn m3(&mut self, amp: f64) -> M3;
-    }
-
-    impl Signed for SplitMix {
-        fn next_f64(&mut self) -> f64 {
-            self.range(-1.0, 1.0)
-        }
-        fn m3(&mut self, amp: f64) -> M3 {
-            M3::from_fn(|_, _| amp * self.next_f64())
-        }
+    /// Matrix with entries uniform in [-amp, amp).
+    fn m3(rng: &mut SplitMix, amp: f64) -> M3 {
+        M3::from_fn(|_, _| amp * rng.signed())
     }
 
     fn laws() -> [Material; 3] {
@@ -332,7 +320,7 @@ mod tests {
         let mut rng = SplitMix(7);
         for mat in laws() {
             for trial in 0..20 {
-                let mut f = M3::identity() + rng.m3(0.3);
+                let mut f = M3::identity() + m3(&mut rng, 0.3);
                 if mat.law == Law::Corotational && trial % 4 == 0 {
                     // Inverted element: flip one column.
                     f.column_mut(0).neg_mut();
@@ -340,7 +328,7 @@ mod tests {
                 let k = mat.kinematics(&f);
                 let p = mat.pk1(&k);
                 let h = 1e-6;
-                let dir = rng.m3(1.0);
+                let dir = m3(&mut rng, 1.0);
                 let kp = mat.kinematics(&(f + dir * h));
                 let km = mat.kinematics(&(f - dir * h));
                 let fd = (mat.energy_density(&kp) - mat.energy_density(&km)) / (2.0 * h);
@@ -367,7 +355,7 @@ mod tests {
     fn rotation_invariance_of_nonlinear_laws() {
         let mut rng = SplitMix(11);
         for mat in &laws()[1..] {
-            let f = M3::identity() + rng.m3(0.2);
+            let f = M3::identity() + m3(&mut rng, 0.2);
             let q = nalgebra::Rotation3::from_scaled_axis(nalgebra::Vector3::new(0.3, -1.1, 0.7)).into_inner();
             let (e0, e1) = (
                 mat.energy_density(&mat.kinematics(&f)),
@@ -388,12 +376,12 @@ mod tests {
         for trial in 0..200 {
             let amp = [0.05, 0.3, 0.6][trial % 3];
             let q = nalgebra::Rotation3::from_scaled_axis(nalgebra::Vector3::new(
-                3.0 * rng.next_f64(),
-                3.0 * rng.next_f64(),
-                3.0 * rng.next_f64(),
+                3.0 * rng.signed(),
+                3.0 * rng.signed(),
+                3.0 * rng.signed(),
             ))
             .into_inner();
-            let f = q * (M3::identity() + rng.m3(amp));
+            let f = q * (M3::identity() + m3(&mut rng, amp));
             let (r_svd, s_svd) = polar_svd(&f);
             match polar_newton(&f) {
                 Some(r) => {

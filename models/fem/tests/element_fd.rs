@@ -4,7 +4,7 @@
 //! motions give zero force.
 
 mod common;
-use common::{Signed, SplitMix, tissue};
+use common::{SplitMix, tissue};
 use surgbench_core::{Vec3, mesh};
 use surgbench_fem::core::Solid;
 use surgbench_fem::{Jacobian, Law};
@@ -15,9 +15,13 @@ fn deformed(seed: u64, amp: f64) -> (surgbench_core::TetMesh, Vec<Vec3>) {
     let m = mesh::block(Vec3::new(0.01, 0.012, 0.014), [2, 2, 2]);
     let mut rng = SplitMix(seed);
     // Random homogeneous stretch plus nodal noise (amp relative to 1 cm).
-    let f = surgbench_fem::material::M3::identity() * 1.1
-        + surgbench_fem::material::M3::from_fn(|_, _| 0.1 * rng.next_f64());
-    let x = m.nodes.iter().map(|p| f * p + rng.vec3(amp * 0.01)).collect();
+    let f =
+        surgbench_fem::material::M3::identity() * 1.1 + surgbench_fem::material::M3::from_fn(|_, _| 0.1 * rng.signed());
+    let x = m
+        .nodes
+        .iter()
+        .map(|p| f * p + rng.signed_vec() * (amp * 0.01))
+        .collect();
     (m, x)
 }
 
@@ -139,8 +143,8 @@ fn warped_stiffness_equals_rotated_rest_stiffness() {
     let mut rng = SplitMix(11);
     let mut worst: f64 = 0.0;
     for e in 0..el.len() {
-        let axis = rng.vec3(1.0).normalize();
-        let ang = 3.0 * rng.next_f64();
+        let axis = rng.signed_vec().normalize();
+        let ang = 3.0 * rng.signed();
         let r = *nalgebra::Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(axis), ang).matrix();
         let a = warp(&el.rest_stiffness(mu, lambda, e), &r);
         let b = el.warped_stiffness(mu, lambda, e, &r);

@@ -120,17 +120,18 @@ impl ModelFactory for PbdRodFactory {
         // Gauss-Seidel then cannot carry it back to the clamp within the
         // substep and the wire over-stretches (capstan: 1 N on 2.2e-6 kg at
         // h = 0.25 ms is 29 mm against 1.1 mm segments). Default substeps keep
-        // that offset below a tenth of a segment at the default 50 segments,
-        // h <= l sqrt(0.1 rho A / (2 |F|)) (measured: capstan at 40 segments
-        // runs with 64 substeps, tension ratio within 1.3% of exp(mu theta),
-        // stretch 1.3% = T / EA; it trips the stretch watchdog with 4).
-        if let Some(rod) = scene.rods().next() {
+        // that offset below a tenth of a segment at the default segment count
+        // and time step, h <= l sqrt(0.1 rho A / (2 |F|)) (measured: capstan
+        // at 40 segments runs with 64 substeps, tension ratio within 1.3% of
+        // exp(mu theta), stretch 1.3% = T / EA; it trips the stretch watchdog
+        // with 4).
+        if let (Some(rod), Some(segments), Some(dt)) = (scene.rods().next(), f.segments, f.dt) {
             let fmax = rod.tip_force.norm();
             let s = rod.section_at(rod.length);
-            let l = rod.length / 50.0;
+            let l = rod.length / segments as f64;
             if fmax > 0.0 {
                 let h_max = l * (0.1 * s.density * s.area() / (2.0 * fmax)).sqrt();
-                let ns = (1e-3 / h_max).ceil().clamp(4.0, 1e4);
+                let ns = (dt / h_max).ceil().clamp(4.0, 1e4);
                 f.extras.insert("substeps".into(), ns);
             }
         }

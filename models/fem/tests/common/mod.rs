@@ -3,25 +3,10 @@
 
 use surgbench_core::{SolidMaterial, Vec3};
 
-/// The workspace's seeded generator.
+/// The workspace's seeded generator (`signed()` in [-1, 1), `signed_vec()`);
+/// not every test file that includes this module draws numbers.
+#[allow(unused_imports)]
 pub use surgbench_core::rng::SplitMix64 as SplitMix;
-
-/// Signed draws for test inputs.
-pub trait Signed {
-    /// Uniform in [-1, 1).
-    fn next_f64(&mut self) -> f64;
-    /// Vector with components uniform in [-amp, amp).
-    fn vec3(&mut self, amp: f64) -> Vec3;
-}
-
-impl Signed for SplitMix {
-    fn next_f64(&mut self) -> f64 {
-        self.range(-1.0, 1.0)
-    }
-    fn vec3(&mut self, amp: f64) -> Vec3 {
-        Vec3::new(self.next_f64(), self.next_f64(), self.next_f64()) * amp
-    }
-}
 
 /// Soft-tissue-like material (SI).
 pub fn tissue(nu: f64) -> SolidMaterial {
