@@ -16,6 +16,8 @@
 //! assert!(!Capability::Rod.describe().is_empty());
 //! ```
 
+/// Banded symmetric positive-definite (Cholesky) solver shared by the rod models.
+pub mod band;
 pub mod contact;
 pub mod error;
 pub mod fidelity;

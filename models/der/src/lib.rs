@@ -10,7 +10,8 @@
 //!   [`surgbench_core::RodBody`], step, solve statics, observe);
 //! * [`DerFactory`] / [`DerModel`]: the harness contract (`id = "der"`);
 //! * [`energy`]: the energy terms with exact derivatives;
-//! * [`band`]: the `O(n)` banded Cholesky solver.
+//! * [`band`]: the `O(n)` banded Cholesky solver (re-exported from
+//!   [`surgbench_core::band`], where the rod models share it).
 //!
 //! Units are SI (m, kg, s, N, Pa, rad).
 //!
@@ -24,10 +25,10 @@
 //! assert!(rod.node(rod.num_nodes() - 1).z < 0.0);
 //! ```
 
-pub mod band;
 pub mod energy;
 mod model;
 pub mod rod;
 
 pub use model::{DerFactory, DerModel};
 pub use rod::{DerParams, DerRod, Integrator, TwistDynamics};
+pub use surgbench_core::band;

@@ -2,11 +2,15 @@
 //! storage, `O(n b^2)` to factor and `O(n b)` to solve for half-bandwidth `b`
 //! (Golub & Van Loan, "Matrix Computations", 4th ed., algorithm 4.3.6).
 //!
-//! The rod interleaves its DOFs `[x_0, theta_0, x_1, theta_1, ...]`, so every
-//! stencil touches 11 consecutive unknowns and the half-bandwidth is 10.
+//! Shared by the rod models whose unknowns form a chain: the discrete elastic
+//! rod (`surgbench-der`) interleaves its DOFs `[x_0, theta_0, x_1, theta_1,
+//! ...]`, so every stencil touches 11 consecutive unknowns (half-bandwidth
+//! 10); the direct Cosserat-PBD solver (`surgbench-pbd`, Deul et al. 2018)
+//! orders its constraint multipliers `[BT_0, SS_0, BT_1, SS_1, ...]` in 3x3
+//! blocks that couple only their two neighbours (half-bandwidth 8).
 //!
 //! ```
-//! use surgbench_der::band::BandMatrix;
+//! use surgbench_core::band::BandMatrix;
 //! let mut a = BandMatrix::new(3, 1);
 //! for i in 0..3 { a.add(i, i, 2.0); }
 //! a.add(1, 0, -1.0);
