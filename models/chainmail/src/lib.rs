@@ -73,6 +73,7 @@
 
 pub mod mapping;
 pub mod rules;
+pub mod volume;
 pub mod wire;
 
 pub use rules::LinkParams;
@@ -91,6 +92,14 @@ pub const DEFAULT_ITERATIONS: usize = 10;
 /// and the relaxation dominates every sag.
 pub const DEFAULT_DT: f64 = 1e-2;
 
+/// Default lattice spacing of a moving vessel's volumetric chain-mail (m):
+/// three cells across a 1.5 mm coronary lumen radius.
+pub const DEFAULT_VESSEL_SPACING: f64 = 5e-4;
+/// Default compression/stretch slack of the vessel's links (dimensionless).
+pub const DEFAULT_VESSEL_SLACK: f64 = 0.1;
+/// Default shear limit of the vessel's links (dimensionless).
+pub const DEFAULT_VESSEL_BETA: f64 = 0.1;
+
 /// The chain-mail guidewire's factory (model id `chainmail`).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct ChainmailFactory;
@@ -104,6 +113,7 @@ const CAPABILITIES: &[Capability] = &[
     Capability::VesselContact,
     Capability::Friction,
     Capability::Flow,
+    Capability::MovingVessel,
     Capability::HapticForce,
 ];
 
@@ -123,6 +133,18 @@ const KEYS: &[FidelityKey] = &[
     FidelityKey {
         name: "yield_strain",
         doc: "recoverable strain eps_y of the core for beta_mapping=1 (default 0.06, superelastic nitinol; ~0.004 for stainless steel)",
+    },
+    FidelityKey {
+        name: "vessel_spacing",
+        doc: "moving vessels: spacing h (m) of the volumetric chain-mail lattice of wall and blood elements (default 0.5 mm)",
+    },
+    FidelityKey {
+        name: "vessel_slack",
+        doc: "moving vessels: compression/stretch slack s of the vessel's links, alpha_min = 1 - s, alpha_max = 1 + s (default 0.1)",
+    },
+    FidelityKey {
+        name: "vessel_beta",
+        doc: "moving vessels: shear limit beta of the vessel's links (default 0.1)",
     },
     FidelityKey {
         name: "haptic_k",
@@ -228,8 +250,34 @@ impl ModelFactory for ChainmailFactory {
             beta_override,
             haptic_k: f.extras.get("haptic_k").copied(),
         };
-        let w = ChainmailWire::new(rod, scene.gravity, &scene.environment, &cfg)
+        let mut w = ChainmailWire::new(rod, scene.gravity, &scene.environment, &cfg)
             .map_err(|e| BuildError::bad("chainmail", e))?;
+        if let (Some(sdf), Some(motion)) = (&scene.environment.vessel, &scene.environment.vessel_motion) {
+            let slack = f.extra("vessel_slack", DEFAULT_VESSEL_SLACK);
+            if !(0.0..1.0).contains(&slack) {
+                return Err(BuildError::bad(
+                    "vessel_slack",
+                    format!("must be in [0, 1), got {slack}"),
+                ));
+            }
+            // the wire's reach: its length plus the deepest feed, plus a
+            // margin of the lattice's own width around the tip
+            let feed = scene.control.keys.iter().map(|k| k.insertion).fold(0.0, f64::max);
+            let spacing = f.extra("vessel_spacing", DEFAULT_VESSEL_SPACING);
+            let lcfg = volume::LatticeConfig {
+                spacing,
+                reach: rod.length + feed + 10.0 * spacing,
+                links: LinkParams {
+                    alpha_min: 1.0 - slack,
+                    alpha_max: 1.0 + slack,
+                    beta: f.extra("vessel_beta", DEFAULT_VESSEL_BETA),
+                },
+                iterations: cfg.iterations,
+            };
+            let lat = volume::VesselLattice::new(sdf.clone(), motion.clone(), &rod.base, &lcfg)
+                .map_err(|e| BuildError::bad("vessel_spacing", e))?;
+            w.set_vessel_lattice(lat);
+        }
         Ok(Box::new(w))
     }
 }

@@ -29,6 +29,7 @@
 
 use crate::mapping::BetaMapping;
 use crate::rules::{LinkParams, box_violation, friction_correction, project_into_box, relaxation_target};
+use crate::volume::VesselLattice;
 use std::sync::Arc;
 use surgbench_core::frames::{parallel_transport, rotate_about};
 use surgbench_core::scene::FlowField;
@@ -138,6 +139,9 @@ pub struct ChainmailWire {
     /// Normal wall corrections accumulated per node during this step's
     /// relaxation iterations (`Link` frame), m.
     wall_depth: Vec<f64>,
+    /// The volumetric chain-mail of a moving vessel ([`crate::volume`]);
+    /// `vessel` is then this lattice's lumen.
+    lattice: Option<Arc<VesselLattice>>,
 }
 
 /// Rotate `v` about the unit `axis` by the angle whose sine and cosine are
@@ -233,6 +237,7 @@ impl ChainmailWire {
             contacts: Vec::new(),
             hand_force: Vec3::zeros(),
             wall_depth: Vec::new(),
+            lattice: None,
         };
         let curved = rod.sections.iter().any(|s| s.rest_curvature != [0.0, 0.0]);
         if curved && cfg.frame != BoxFrame::Link {
@@ -255,6 +260,14 @@ impl ChainmailWire {
         }
         w.x_prev = w.x.clone();
         Ok(w)
+    }
+
+    /// Let the wire move through a beating vessel carried by `lattice`
+    /// ([`crate::volume`]): its lumen replaces the scene's rest lumen.
+    pub fn set_vessel_lattice(&mut self, lattice: VesselLattice) {
+        let lat = Arc::new(lattice);
+        self.vessel = Some(lat.clone());
+        self.lattice = Some(lat);
     }
 
     fn link_params_at(&self, s: f64) -> Result<LinkParams, String> {
@@ -726,7 +739,11 @@ impl ChainmailWire {
             let dp_n = -n * depth;
             let depth = depth + prior;
             self.x[i] += dp_n;
-            let m = self.x[i] - self.x_prev[i];
+            // slip against the wall, which itself moved if the vessel beats
+            let mut m = self.x[i] - self.x_prev[i];
+            if let Some(lat) = &self.lattice {
+                m -= lat.step_motion(&self.x[i]);
+            }
             let m_t = m - n * m.dot(&n);
             let f = friction_correction(&m_t, depth, self.friction);
             self.x[i] += f;
@@ -800,12 +817,25 @@ impl ChainmailWire {
         self.d1b = rotate_about(&self.rb.column(1).into_owned(), &self.tb, self.rotation);
         self.update_feed()
             .map_err(|reason| SimError::SolverFailed { t: self.time, reason })?;
+        if let Some(mut lat) = self.lattice.take() {
+            // the only other holder is `vessel`: drop it so the lattice is
+            // updated in place (a cloned wire copies it instead)
+            self.vessel = None;
+            Arc::make_mut(&mut lat).advance(self.time);
+            self.vessel = Some(lat.clone());
+            self.lattice = Some(lat);
+        }
 
         let gd = self.gravity * (dt * dt);
         for i in self.n_fixed..self.x.len() {
             let mut d = gd;
             if let Some(fl) = &self.flow {
-                d += fl.velocity(&self.x[i]) * dt;
+                d += match &self.lattice {
+                    // blood carried by the vessel: the rest flow at the
+                    // element's rest point plus the lattice's motion
+                    Some(lat) => fl.velocity(&lat.rest_point(&self.x[i])) * dt + lat.step_motion(&self.x[i]),
+                    None => fl.velocity(&self.x[i]) * dt,
+                };
             }
             self.x[i] += d;
         }
@@ -924,6 +954,17 @@ impl ChainmailWire {
 impl Model for ChainmailWire {
     fn step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
         self.advance(dt, cmd)
+    }
+    /// With a moving vessel: how far the chain-mail's wall lags the
+    /// prescribed motion (`vessel_lag_rms_m`, `vessel_lag_max_m`).
+    fn diagnostics(&self) -> std::collections::BTreeMap<String, f64> {
+        let mut d = std::collections::BTreeMap::new();
+        if let Some(lat) = &self.lattice {
+            let (rms, max) = lat.tracking_error();
+            d.insert("vessel_lag_rms_m".into(), rms);
+            d.insert("vessel_lag_max_m".into(), max);
+        }
+        d
     }
     fn observe(&self) -> Observation {
         self.observation()

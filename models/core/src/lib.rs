@@ -25,6 +25,7 @@ pub mod frames;
 pub mod haptic;
 pub mod mesh;
 pub mod model;
+pub mod motion;
 pub mod observation;
 pub mod rng;
 pub mod scene;

@@ -62,6 +62,8 @@ pub enum Capability {
     Friction,
     /// Blood-flow drag.
     Flow,
+    /// A vessel that moves and deforms over time (`Environment::vessel_motion`).
+    MovingVessel,
     /// Reports a hand force/torque a haptic device can render.
     HapticForce,
 }
@@ -84,6 +86,7 @@ impl Capability {
             Capability::VesselContact => "contact with a vessel wall",
             Capability::Friction => "Coulomb friction",
             Capability::Flow => "blood-flow drag",
+            Capability::MovingVessel => "a vessel moving over time (beating heart)",
             Capability::HapticForce => "hand force/torque for haptic rendering",
         }
     }
@@ -105,6 +108,7 @@ impl Capability {
             Capability::VesselContact => "vessel-contact",
             Capability::Friction => "friction",
             Capability::Flow => "flow",
+            Capability::MovingVessel => "moving-vessel",
             Capability::HapticForce => "haptic-force",
         }
     }

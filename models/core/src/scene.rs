@@ -14,6 +14,7 @@
 //! ```
 
 use crate::model::Capability;
+use crate::motion::{MovingFlow, MovingSdf, TransformedMotion, VesselMotion};
 use crate::sdf::{Sdf, TransformedSdf};
 use crate::{Iso3, Vec3};
 use std::sync::Arc;
@@ -389,8 +390,33 @@ pub struct Environment {
     pub vessel: Option<Arc<dyn Sdf>>,
     /// Blood flow; only scenes with blood have one.
     pub flow: Option<Arc<dyn FlowField>>,
+    /// Prescribed motion of the vessel (and the blood in it); `vessel` is the
+    /// lumen at rest. Only scenes with a beating vessel have one.
+    pub vessel_motion: Option<Arc<dyn VesselMotion>>,
     /// Contact and friction.
     pub contact: ContactParams,
+}
+
+impl Environment {
+    /// The lumen at time `t` (s): the vessel itself, or, when it moves, the
+    /// rest lumen pulled back through the motion ([`MovingSdf`]).
+    pub fn vessel_at(&self, t: f64) -> Option<Arc<dyn Sdf>> {
+        let v = self.vessel.as_ref()?;
+        Some(match &self.vessel_motion {
+            Some(m) => Arc::new(MovingSdf::new(v.clone(), m.clone(), t)),
+            None => v.clone(),
+        })
+    }
+
+    /// The blood flow at time `t` (s), carried by the vessel's motion if any
+    /// ([`MovingFlow`]).
+    pub fn flow_at(&self, t: f64) -> Option<Arc<dyn FlowField>> {
+        let f = self.flow.as_ref()?;
+        Some(match &self.vessel_motion {
+            Some(m) => Arc::new(MovingFlow::new(f.clone(), m.clone(), t)),
+            None => f.clone(),
+        })
+    }
 }
 
 /// What the operator's hands do at one instant.
@@ -585,6 +611,9 @@ impl Scene {
         if self.environment.flow.is_some() {
             c.push(Capability::Flow);
         }
+        if self.environment.vessel_motion.is_some() {
+            c.push(Capability::MovingVessel);
+        }
         c.sort();
         c.dedup();
         c
@@ -636,6 +665,9 @@ impl Scene {
         if !(c.margin >= 0.0) {
             return Err(format!("contact margin must be >= 0 m, got {}", c.margin));
         }
+        if self.environment.vessel_motion.is_some() && self.environment.vessel.is_none() {
+            return Err("a vessel motion needs a vessel".into());
+        }
         Ok(())
     }
 
@@ -682,6 +714,9 @@ impl Scene {
                 inner: f.clone(),
                 iso: *iso,
             }));
+        }
+        if let Some(m) = &self.environment.vessel_motion {
+            s.environment.vessel_motion = Some(Arc::new(TransformedMotion::new(m.clone(), *iso)));
         }
         s
     }

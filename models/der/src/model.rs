@@ -17,6 +17,7 @@ const CAPABILITIES: &[Capability] = &[
     Capability::VesselContact,
     Capability::Friction,
     Capability::Flow,
+    Capability::MovingVessel,
     Capability::HapticForce,
 ];
 
@@ -195,8 +196,7 @@ impl ModelFactory for DerFactory {
             max_substep_depth: depth as usize,
         };
         rod.gravity = scene.gravity;
-        rod.set_vessel(scene.environment.vessel.clone(), scene.environment.contact);
-        rod.set_flow(scene.environment.flow.clone());
+        rod.set_environment(&scene.environment);
         Ok(Box::new(DerModel::new(rod, dt)))
     }
 }

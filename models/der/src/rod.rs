@@ -131,10 +131,11 @@ use crate::energy::{self, Stencil, VertexParams, VertexTerms};
 use std::sync::Arc;
 use surgbench_core::contact::LaggedFriction;
 use surgbench_core::frames::rotate_about;
+use surgbench_core::motion::carried;
 use surgbench_core::scene::FlowField;
 use surgbench_core::{
-    BuildError, ContactObs, ContactParams, DeviceCommand, EnergyObs, EnergyProbe, Iso3, LoadRamp, Mat3, RodBody,
-    RodObs, Sdf, SimError, StepStats, Vec3,
+    BuildError, ContactObs, ContactParams, DeviceCommand, EnergyObs, EnergyProbe, Environment, Iso3, LoadRamp, Mat3,
+    RodBody, RodObs, Sdf, SimError, StepStats, Vec3,
 };
 
 /// Number of leading DOFs fixed by the clamp: `x_0`, `theta_0`, `x_1`.
@@ -351,6 +352,9 @@ pub struct DerRod {
     /// Deepest halving used by the last [`DerRod::step`].
     substep_depth: usize,
     flow: Option<Arc<dyn FlowField>>,
+    /// A moving vessel: its environment (rest lumen, motion, rest flow);
+    /// `vessel` and `flow` are re-frozen at the end time of every (sub)step.
+    moving: Option<Environment>,
     /// Diameter of every edge's section (m), for the drag.
     edge_diam: Vec<f64>,
     /// Lagged drag state per node: flow velocity at the start of the step.
@@ -554,6 +558,7 @@ impl DerRod {
             substeps: 0,
             substep_depth: 0,
             flow: None,
+            moving: None,
             edge_diam,
             drag_flow: vec![Vec3::zeros(); n],
             drag_tan: vec![Vec3::x(); n],
@@ -572,6 +577,17 @@ impl DerRod {
     /// Put the rod in a blood-flow field (see the module docs, "Flow drag").
     pub fn set_flow(&mut self, flow: Option<Arc<dyn FlowField>>) {
         self.flow = flow;
+    }
+
+    /// Put the rod in the vessel and flow of `env`, following its prescribed
+    /// motion if it has one: each (sub)step solves against the lumen and
+    /// flow at its end time, and friction anchors ride on the wall
+    /// ([`surgbench_core::motion::carried`]), so slip is measured against the
+    /// moving wall.
+    pub fn set_environment(&mut self, env: &Environment) {
+        self.set_vessel(env.vessel_at(self.time), env.contact);
+        self.set_flow(env.flow_at(self.time));
+        self.moving = env.vessel_motion.as_ref().map(|_| env.clone());
     }
 
     /// Drag coefficients `(c_n, c_t)` (N s^2/m^2) of the half of free
@@ -1401,6 +1417,10 @@ impl DerRod {
         // Backward Euler and Newmark both impose equilibrium at the end of
         // the step: the dead tip loads act with their value at t + dt.
         self.load_scale = self.tip_load_scale(self.time + dt);
+        if let Some(env) = &self.moving {
+            self.vessel = env.vessel_at(self.time + dt);
+            self.flow = env.flow_at(self.time + dt);
+        }
         self.q0.copy_from_slice(&self.q);
         let ndof = self.q.len();
         for g in 0..ndof {
@@ -1517,6 +1537,7 @@ impl DerRod {
         if self.vessel.is_none() {
             return;
         }
+        let motion = self.moving.as_ref().and_then(|e| e.vessel_motion.clone());
         self.friction_eps = self.params.friction_creep * dt;
         let (mu_s, mu_d) = (self.contact.friction_static, self.contact.friction_dynamic);
         for k in 2..self.n {
@@ -1525,7 +1546,10 @@ impl DerRod {
             self.friction[k] = if lag.force > 0.0 && mu > 0.0 {
                 LaggedFriction {
                     normal: lag.normal,
-                    anchor: self.node(k),
+                    anchor: match &motion {
+                        Some(m) => carried(m.as_ref(), &self.node(k), self.time, self.time + dt),
+                        None => self.node(k),
+                    },
                     bound: mu * lag.force,
                 }
             } else {
