@@ -80,6 +80,12 @@ fn main() {
         factor_reuse: reuse,
         ..base
     };
+    let chol_tol = |lazy: f64, reuse_tol: f64| DynParams {
+        lazy_threshold: lazy,
+        factor_reuse: true,
+        reuse_tol,
+        ..base
+    };
     let cgp = |tol: f64, lazy: f64| DynParams {
         solver: cg(tol),
         lazy_threshold: lazy,
@@ -95,6 +101,9 @@ fn main() {
         ("cholesky, stale-factor PCG, lazy 0.01", chol(0.01, true)),
         ("cholesky, refactor on change, lazy 0.05", chol(0.05, false)),
         ("cholesky, stale-factor PCG, lazy 0.05", chol(0.05, true)),
+        ("cholesky, stale-factor PCG 1e-4, lazy 0", chol_tol(0.0, 1e-4)),
+        ("cholesky, stale-factor PCG 1e-5, lazy 0", chol_tol(0.0, 1e-5)),
+        ("cholesky, stale-factor PCG 1e-4, lazy 0.05", chol_tol(0.05, 1e-4)),
         ("cg 1e-3, lazy 0", cgp(1e-3, 0.0)),
         ("cg 1e-4, lazy 0", cgp(1e-4, 0.0)),
         ("cg 1e-5, lazy 0", cgp(1e-5, 0.0)),

@@ -10,6 +10,7 @@
 //! without allocation, reused while the matrix does not change), or with a
 //! block-Jacobi preconditioned conjugate gradient on the block CSR matrix.
 
+use crate::element::UPPER;
 use crate::material::M3;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
@@ -30,9 +31,14 @@ pub struct Pattern {
     pub row_ptr: Vec<usize>,
     /// Block CSR column (node) indices, sorted within each row.
     pub col: Vec<usize>,
-    /// For every block, the element-slot sources `16 e + 4 a + b`, in element order.
+    /// For every block on or above the diagonal (`col >= row`), its element
+    /// sources in element order, each `2 (10 e + UPPER[a'][b']) + t`: the
+    /// element's upper block `(a', b') = (min, max)(a, b)`, transposed when
+    /// `t = 1` (`a > b`). Blocks below the diagonal have no sources.
     blk_ptr: Vec<usize>,
     blk_src: Vec<u32>,
+    /// Pairs `(lower block, its transpose above the diagonal)`.
+    mirror: Vec<(u32, u32)>,
     /// For every node, the element-slot sources `4 e + a`, in element order.
     node_ptr: Vec<usize>,
     node_src: Vec<u32>,
@@ -66,7 +72,18 @@ impl Pattern {
             for a in 0..4 {
                 node_lists[t[a]].push((4 * e + a) as u32);
                 for b in 0..4 {
-                    blk_lists[find(t[a], t[b])].push((16 * e + 4 * a + b) as u32);
+                    if t[a] <= t[b] {
+                        let u = UPPER[a.min(b)][a.max(b)];
+                        blk_lists[find(t[a], t[b])].push((2 * (10 * e + u) + usize::from(a > b)) as u32);
+                    }
+                }
+            }
+        }
+        let mut mirror = Vec::new();
+        for r in 0..n {
+            for bi in row_ptr[r]..row_ptr[r + 1] {
+                if col[bi] < r {
+                    mirror.push((bi as u32, find(col[bi], r) as u32));
                 }
             }
         }
@@ -87,6 +104,7 @@ impl Pattern {
             col,
             blk_ptr,
             blk_src,
+            mirror,
             node_ptr,
             node_src,
             diag,
@@ -98,16 +116,28 @@ impl Pattern {
         self.col.len()
     }
 
-    /// Sum per-element blocks into the block CSR values (fixed order).
+    /// Sum per-element blocks into the block CSR values (fixed order) of a
+    /// symmetric matrix: `elem(e, u)` is element `e`'s upper block
+    /// `u = UPPER[a][b]` (`a <= b`). Blocks on and above the diagonal are
+    /// summed; those below are the transposes of their mirrors (exactly
+    /// what summing the elements' transposed blocks in the same order gives).
     pub fn reduce_matrix(&self, elem: impl Fn(usize, usize) -> M3 + Sync, out: &mut [M3]) {
         out.par_iter_mut().with_min_len(256).enumerate().for_each(|(bi, o)| {
+            let (p0, p1) = (self.blk_ptr[bi], self.blk_ptr[bi + 1]);
+            if p0 == p1 {
+                return;
+            }
             let mut s = M3::zeros();
-            for &src in &self.blk_src[self.blk_ptr[bi]..self.blk_ptr[bi + 1]] {
-                let src = src as usize;
-                s += elem(src / 16, src % 16);
+            for &src in &self.blk_src[p0..p1] {
+                let (eu, t) = (src as usize >> 1, src & 1 == 1);
+                let k = elem(eu / 10, eu % 10);
+                s += if t { k.transpose() } else { k };
             }
             *o = s;
         });
+        for &(lo, up) in &self.mirror {
+            out[lo as usize] = out[up as usize].transpose();
+        }
     }
 
     /// Sum per-element nodal vectors into node vectors (fixed order).
@@ -545,38 +575,88 @@ struct Op<'a> {
 
 impl Op<'_> {
     /// `y = A x` (block CSR, one pass over the blocks); returns `x . y`
-    /// summed per [`CG_CHUNK`] and then in chunk order.
+    /// summed per [`CG_CHUNK`] and then in chunk order. On x86-64 CPUs with
+    /// AVX2 and FMA (checked at run time) the block products use 4-lane
+    /// fused multiply-adds ([`block_rows_fma`]); otherwise scalar code
+    /// ([`block_rows`]). Both are deterministic; they differ from each other
+    /// in round-off (fused vs separate rounding).
     fn apply_dot(&self, x: &[f64], y: &mut [f64], part: &mut [[f64; 2]]) -> f64 {
-        let (row_ptr, col, k) = (&self.pat.row_ptr, &self.pat.col, self.k);
-        let (c_k, c_m, mass, mask) = (self.c_k, self.c_m, self.mass, self.mask);
+        #[cfg(target_arch = "x86_64")]
+        let simd = pulp::x86::V3::try_new();
         y.par_chunks_mut(3 * CG_CHUNK)
             .zip(part.par_iter_mut())
             .enumerate()
             .for_each(|(c, (yc, pc))| {
-                let mut d = 0.0;
-                for (l, yn) in yc.chunks_exact_mut(3).enumerate() {
-                    let n = c * CG_CHUNK + l;
-                    let (r0, r1) = (row_ptr[n], row_ptr[n + 1]);
-                    let (mut s0, mut s1, mut s2) = (0.0, 0.0, 0.0);
-                    for (&m, a) in col[r0..r1].iter().zip(&k[r0..r1]) {
-                        let xm = &x[3 * m..3 * m + 3];
-                        // nalgebra stores M3 column-major.
-                        let a = a.as_slice();
-                        s0 += a[0] * xm[0] + a[3] * xm[1] + a[6] * xm[2];
-                        s1 += a[1] * xm[0] + a[4] * xm[1] + a[7] * xm[2];
-                        s2 += a[2] * xm[0] + a[5] * xm[1] + a[8] * xm[2];
-                    }
-                    let cm = c_m * mass[n];
-                    let (xn, mn) = (&x[3 * n..3 * n + 3], &mask[3 * n..3 * n + 3]);
-                    yn[0] = mn[0] * (c_k * s0 + cm * xn[0]);
-                    yn[1] = mn[1] * (c_k * s1 + cm * xn[1]);
-                    yn[2] = mn[2] * (c_k * s2 + cm * xn[2]);
-                    d += xn[0] * yn[0] + xn[1] * yn[1] + xn[2] * yn[2];
+                let n0 = c * CG_CHUNK;
+                #[cfg(target_arch = "x86_64")]
+                if let Some(simd) = simd {
+                    pc[0] = simd.vectorize(|| block_rows_fma(simd, self, x, n0, yc));
+                    return;
                 }
-                pc[0] = d;
+                pc[0] = block_rows(self, x, n0, yc);
             });
         part.iter().map(|p| p[0]).sum()
     }
+
+    /// `y_n = mask_n (c_k s_n + c_m m_n x_n)` for the `s_n = (K x)_n` of
+    /// node `n`; returns `x_n . y_n`.
+    #[inline(always)]
+    fn finish_row(&self, n: usize, s: [f64; 3], x: &[f64], yn: &mut [f64]) -> f64 {
+        let cm = self.c_m * self.mass[n];
+        let (xn, mn) = (&x[3 * n..3 * n + 3], &self.mask[3 * n..3 * n + 3]);
+        yn[0] = mn[0] * (self.c_k * s[0] + cm * xn[0]);
+        yn[1] = mn[1] * (self.c_k * s[1] + cm * xn[1]);
+        yn[2] = mn[2] * (self.c_k * s[2] + cm * xn[2]);
+        xn[0] * yn[0] + xn[1] * yn[1] + xn[2] * yn[2]
+    }
+}
+
+/// Rows `n0..` of `A x` into `yc` (scalar); returns their `x . y`.
+fn block_rows(op: &Op, x: &[f64], n0: usize, yc: &mut [f64]) -> f64 {
+    let (row_ptr, col, k) = (&op.pat.row_ptr, &op.pat.col, op.k);
+    let xs = x.as_chunks::<3>().0;
+    let mut d = 0.0;
+    for (l, yn) in yc.chunks_exact_mut(3).enumerate() {
+        let n = n0 + l;
+        let (r0, r1) = (row_ptr[n], row_ptr[n + 1]);
+        let (mut s0, mut s1, mut s2) = (0.0, 0.0, 0.0);
+        for (&m, a) in col[r0..r1].iter().zip(&k[r0..r1]) {
+            let xm = xs[m];
+            // nalgebra stores M3 column-major: `a[j]` is column j.
+            let a = &a.data.0;
+            s0 += a[0][0] * xm[0] + a[1][0] * xm[1] + a[2][0] * xm[2];
+            s1 += a[0][1] * xm[0] + a[1][1] * xm[1] + a[2][1] * xm[2];
+            s2 += a[0][2] * xm[0] + a[1][2] * xm[1] + a[2][2] * xm[2];
+        }
+        d += op.finish_row(n, [s0, s1, s2], x, yn);
+    }
+    d
+}
+
+/// [`block_rows`] with AVX2/FMA: every block's three columns (lanes 0-2;
+/// lane 3 unused) times the broadcast entries of `x_m`, accumulated with
+/// fused multiply-adds (one rounding per product-sum).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn block_rows_fma(simd: pulp::x86::V3, op: &Op, x: &[f64], n0: usize, yc: &mut [f64]) -> f64 {
+    use pulp::f64x4;
+    let (row_ptr, col, k) = (&op.pat.row_ptr, &op.pat.col, op.k);
+    let xs = x.as_chunks::<3>().0;
+    let mut d = 0.0;
+    for (l, yn) in yc.chunks_exact_mut(3).enumerate() {
+        let n = n0 + l;
+        let (r0, r1) = (row_ptr[n], row_ptr[n + 1]);
+        let mut acc = simd.splat_f64x4(0.0);
+        for (&m, a) in col[r0..r1].iter().zip(&k[r0..r1]) {
+            let [c0, c1, c2] = &a.data.0;
+            let xm = xs[m];
+            acc = simd.mul_add_f64x4(f64x4(c0[0], c0[1], c0[2], 0.0), simd.splat_f64x4(xm[0]), acc);
+            acc = simd.mul_add_f64x4(f64x4(c1[0], c1[1], c1[2], 0.0), simd.splat_f64x4(xm[1]), acc);
+            acc = simd.mul_add_f64x4(f64x4(c2[0], c2[1], c2[2], 0.0), simd.splat_f64x4(xm[2]), acc);
+        }
+        d += op.finish_row(n, [acc.0, acc.1, acc.2], x, yn);
+    }
+    d
 }
 
 /// Preconditioner of [`pcg`].
@@ -663,14 +743,32 @@ fn pcg(op: &Op, mut pre: Precond, w: &mut CgWork, b: &[f64], x: &mut [f64], tol:
                 part.iter().fold((0.0, 0.0), |(a, b), p| (a + p[0], b + p[1]))
             }
             Precond::Factor { .. } => {
-                x.par_iter_mut()
-                    .with_min_len(1024)
-                    .zip(r.par_iter_mut())
-                    .zip(p.par_iter().zip(ap.par_iter()))
-                    .for_each(|((x, r), (p, a))| {
-                        *x += alpha * p;
-                        *r -= alpha * a;
+                // x += alpha p, r -= alpha A p and r . r per chunk (the
+                // same sums `chunk_sums` forms).
+                x.par_chunks_mut(3 * CG_CHUNK)
+                    .zip(r.par_chunks_mut(3 * CG_CHUNK))
+                    .zip(part.par_iter_mut())
+                    .enumerate()
+                    .for_each(|(c, ((xc, rc), pc))| {
+                        let o = 3 * CG_CHUNK * c;
+                        let (pp, aa) = (&p[o..o + xc.len()], &ap[o..o + xc.len()]);
+                        let mut rr = 0.0;
+                        for i in 0..xc.len() {
+                            xc[i] += alpha * pp[i];
+                            rc[i] -= alpha * aa[i];
+                            rr += rc[i] * rc[i];
+                        }
+                        *pc = [0.0, rr];
                     });
+                let rr: f64 = part.iter().map(|p| p[1]).sum();
+                if rr.sqrt() / bnorm <= tol {
+                    // Converged: skip the triangular solves, whose `z` only
+                    // a next iteration would use (one of the two costly
+                    // operations of an iteration).
+                    it += 1;
+                    rel = rr.sqrt() / bnorm;
+                    break;
+                }
                 precond(&mut pre, r, z, part)
             }
         };

@@ -3,7 +3,7 @@
 
 use crate::FemError;
 use crate::assembly::Pattern;
-use crate::element::{ElemBlocks, Elements, Jacobian, QUAD4, project_psd, rotation_angle};
+use crate::element::{Elements, Jacobian, QUAD4, UpperBlocks, project_psd, rotation_angle, upper_of};
 use crate::material::{Law, M3, Material};
 use rayon::prelude::*;
 use surgbench_core::{SolidMaterial, TetMesh, Vec3};
@@ -15,7 +15,8 @@ struct ElemState {
     energy: f64,
     r: M3,
     j: f64,
-    k: ElemBlocks,
+    /// Upper blocks of the element Jacobian (`K_ba = K_ab^T`).
+    k: UpperBlocks,
     /// Rotation the cached `k` was built with (lazy update).
     r_used: M3,
     has_k: bool,
@@ -46,12 +47,14 @@ pub struct Solid {
     /// Lumped nodal masses (kg): `rho V / 4` from each tet.
     pub mass: Vec<f64>,
     /// Rest stiffness per element (linear law), for warped / linear Jacobians.
-    k0: Vec<ElemBlocks>,
+    k0: Vec<UpperBlocks>,
     state: Vec<ElemState>,
     /// Assembled block CSR Jacobian `K = d(-f)/dx`.
     pub kmat: Vec<M3>,
     /// Elastic nodal forces `-dE/dx` (N) from the last evaluation.
     pub forces: Vec<Vec3>,
+    /// Which Jacobian `kmat` holds (`None` before the first assembly).
+    kmat_kind: Option<Jacobian>,
     pool: rayon::ThreadPool,
 }
 
@@ -94,10 +97,10 @@ impl Solid {
             .num_threads(threads.max(1))
             .build()
             .map_err(|e| FemError::BadInput(format!("cannot start {threads} threads: {e}")))?;
-        let k0: Vec<ElemBlocks> = pool.install(|| {
+        let k0: Vec<UpperBlocks> = pool.install(|| {
             (0..elems.len())
                 .into_par_iter()
-                .map(|e| elems.rest_stiffness(mat.mu, mat.lambda, e))
+                .map(|e| upper_of(&elems.rest_stiffness(mat.mu, mat.lambda, e)))
                 .collect()
         });
         let nan = M3::repeat(f64::NAN);
@@ -107,7 +110,7 @@ impl Solid {
                 energy: 0.0,
                 r: M3::identity(),
                 j: 1.0,
-                k: [M3::zeros(); 16],
+                k: [M3::zeros(); 10],
                 r_used: nan,
                 has_k: false,
                 updated: false,
@@ -124,6 +127,7 @@ impl Solid {
             state,
             kmat: vec![M3::zeros(); nb],
             forces: vec![Vec3::zeros(); pat.n],
+            kmat_kind: None,
             pat,
             pool,
         })
@@ -166,11 +170,11 @@ impl Solid {
                             && (mat.law == Law::Linear
                                 || (lazy_threshold > 0.0 && rotation_angle(&s.r_used, &r) <= lazy_threshold));
                         if !stale {
-                            s.k = if mat.law == Law::Linear {
-                                k0[e]
+                            if mat.law == Law::Linear {
+                                s.k = k0[e];
                             } else {
-                                elems.warped_stiffness(mat.mu, mat.lambda, e, &r)
-                            };
+                                elems.warped_upper(mat.mu, mat.lambda, e, &r, &mut s.k);
+                            }
                             s.r_used = r;
                             s.has_k = true;
                         } else {
@@ -181,7 +185,7 @@ impl Solid {
                         s.k = if mat.law == Law::Linear {
                             k0[e]
                         } else {
-                            elems.stiffness(&mat, e, &kin)
+                            upper_of(&elems.stiffness(&mat, e, &kin))
                         };
                         s.has_k = false;
                     }
@@ -189,7 +193,7 @@ impl Solid {
                         s.k = if mat.law == Law::Linear {
                             k0[e]
                         } else {
-                            project_psd(&elems.stiffness(&mat, e, &kin))
+                            upper_of(&project_psd(&elems.stiffness(&mat, e, &kin)))
                         };
                         s.has_k = false;
                     }
@@ -208,12 +212,16 @@ impl Solid {
         let pat = &self.pat;
         let forces = &mut self.forces;
         let kmat = &mut self.kmat;
+        let kmat_kind = &self.kmat_kind;
         pool.install(|| {
             pat.reduce_vector(|e, a| st[e].f[a], forces);
-            if jac.is_some() {
-                pat.reduce_matrix(|e, ab| st[e].k[ab], kmat);
+            // With the warped Jacobian and no block rebuilt (lazy update),
+            // the assembled matrix is what the same sums gave last time.
+            if jac.is_some() && !(jac == Some(Jacobian::Warped) && *kmat_kind == jac && stats.updated == 0) {
+                pat.reduce_matrix(|e, u| st[e].k[u], kmat);
             }
         });
+        self.kmat_kind = jac.or(self.kmat_kind);
         stats
     }
 

@@ -24,10 +24,12 @@
 //!   (and the coefficients are the same), the factor is reused as is (one
 //!   forward/backward solve). When blocks changed and `factor_reuse` is on
 //!   (default), the stale factor preconditions a CG solve on the current
-//!   matrix to a relative residual of 1e-6 (its error is four orders below
-//!   the one-Newton-step scheme's own), and the matrix is refactorized on the next step once
-//!   that CG needs more than 6 iterations, or at once if it does not
-//!   converge in 25. Otherwise the matrix is refactorized.
+//!   matrix to the relative residual `reuse_tol` (default 1e-6: its error
+//!   is five orders below the one-Newton-step scheme's own), and the matrix
+//!   is refactorized on the next step once those CG solves have cost about
+//!   one factorization more than one solve per step would have
+//!   (`REFRESH_EXCESS`), or at once if CG does not converge in 25
+//!   iterations. Otherwise the matrix is refactorized.
 //! * CG: block-Jacobi PCG to the relative tolerance `cg_tol`, warm-started
 //!   from the constant-acceleration predictor.
 
@@ -42,18 +44,24 @@ use surgbench_core::{
     Observation, Scene, SimError, StepStats, TissueBody, TissueObs, Vec3,
 };
 
-/// Relative residual of the stale-factor-preconditioned CG. Measured on the
-/// bench block (examples/step_speed.rs): a relative residual of 1e-6 moves
-/// the nodes by 2e-6 of the largest displacement, while the one-Newton-step
-/// scheme itself is 3.9e-2 away from the converged implicit step: four
-/// orders of magnitude below the scheme's own error.
-const REUSE_TOL: f64 = 1e-6;
+/// Default relative residual of the stale-factor-preconditioned CG
+/// ([`DynParams::reuse_tol`]). Measured on the bench block
+/// (examples/step_speed.rs): a relative residual of 1e-6 moves the nodes by
+/// 7e-7 of the largest displacement, while the one-Newton-step scheme
+/// itself is 6.0e-2 away from the converged implicit step: five orders of
+/// magnitude below the scheme's own error.
+pub const REUSE_TOL: f64 = 1e-6;
 /// Most halvings of a quasi-static load increment (down to 1/64 of it).
 const MAX_HALVINGS: usize = 6;
 /// Iteration cap of that CG; past it the matrix is refactorized.
 const REUSE_ITERS: usize = 25;
-/// When that CG needs more iterations than this, the next step refactorizes.
-const REFRESH_ITERS: usize = 6;
+/// Refactorize on the next step once the stale-factor CG solves since the
+/// last factorization exceed one per step by this many in total: a numeric
+/// factorization costs about 53 forward/backward solves on the bench block
+/// (520 M against 9.8 M instructions, callgrind), so refreshing when the
+/// extra solves have cost one factorization keeps the total within twice
+/// that of the best refresh schedule in hindsight (the ski-rental bound).
+const REFRESH_EXCESS: usize = 50;
 
 /// Time integrator.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -79,10 +87,13 @@ pub struct DynParams {
     pub lazy_threshold: f64,
     /// Cholesky only: when some Jacobian blocks changed since the last
     /// numeric factorization, solve with CG preconditioned by that stale
-    /// factor (to a relative residual of 1e-6; see `REUSE_TOL`) instead of
-    /// refactorizing; refactorize once that CG needs more
-    /// than 6 iterations. `false`: refactorize whenever a block changed.
+    /// factor (to the relative residual `reuse_tol`) instead of
+    /// refactorizing; refactorize once its extra solves have cost about one
+    /// factorization (see the module docs). `false`: refactorize whenever
+    /// a block changed.
     pub factor_reuse: bool,
+    /// Relative residual of that CG (default [`REUSE_TOL`]).
+    pub reuse_tol: f64,
     /// Rayleigh mass coefficient `alpha` (1/s).
     pub rayleigh_mass: f64,
     /// Rayleigh stiffness coefficient `beta` (s).
@@ -103,6 +114,7 @@ impl Default for DynParams {
             solver: LinearSolver::default(),
             lazy_threshold: 0.0,
             factor_reuse: true,
+            reuse_tol: REUSE_TOL,
             rayleigh_mass: 0.0,
             rayleigh_stiffness: 0.0,
             iterations: 1,
@@ -134,6 +146,8 @@ pub struct FemModel {
     inverted: usize,
     /// Some Jacobian block changed since the cached factorization.
     factor_stale: bool,
+    /// Stale-factor CG solves beyond one per step since the factorization.
+    excess_solves: usize,
     /// Elements whose Jacobian was rebuilt in the last step.
     pub last_updated: usize,
     /// Command (load factor) of the last completed step.
@@ -151,6 +165,8 @@ impl FemModel {
             || !(p.lazy_threshold >= 0.0)
             || !(p.rayleigh_mass >= 0.0)
             || !(p.rayleigh_stiffness >= 0.0)
+            || !(0.0..1.0).contains(&p.reuse_tol)
+            || p.reuse_tol == 0.0
         {
             return Err(FemError::BadInput(format!("bad dynamic settings {p:?}")));
         }
@@ -192,6 +208,7 @@ impl FemModel {
             hand_force: Vec3::zeros(),
             inverted: 0,
             factor_stale: true,
+            excess_solves: 0,
             last_updated: 0,
             s_last: 0.0,
         })
@@ -434,6 +451,7 @@ impl FemModel {
                         self.sys.solve_cholesky(&mut dx);
                         solved = true;
                     } else if same && self.p.factor_reuse {
+                        let reuse_tol = self.p.reuse_tol;
                         // Some blocks changed: the stale factor preconditions
                         // CG on the current matrix (REUSE_TOL, REUSE_ITERS).
                         let mut sol = guess.clone();
@@ -447,19 +465,20 @@ impl FemModel {
                                 c_m,
                                 &r,
                                 &mut sol,
-                                REUSE_TOL,
+                                reuse_tol,
                                 REUSE_ITERS,
                             )
                         });
                         if let Some((it, rel)) = out {
                             cg_its += it;
                             res = rel;
-                            if rel <= REUSE_TOL {
+                            if rel <= reuse_tol {
                                 dx = sol;
                                 solved = true;
                             }
                             // The factor has aged: refresh it on the next step.
-                            if it > REFRESH_ITERS {
+                            self.excess_solves += it.saturating_sub(1);
+                            if self.excess_solves > REFRESH_EXCESS {
                                 self.cached = None;
                             }
                         }
@@ -469,6 +488,7 @@ impl FemModel {
                             .set_values(&self.solid.pat, &self.solid.kmat, c_k, &self.solid.mass, c_m);
                         self.cached = Some((c_k, c_m));
                         self.factor_stale = false;
+                        self.excess_solves = 0;
                         if let Err(e) = self.sys.factorize(&self.solid.pat, ord) {
                             // Indefinite exact Hessian (neo-Hookean): retry projected.
                             self.solid.evaluate(&self.x, Some(Jacobian::Projected), 0.0);
@@ -652,6 +672,10 @@ const KEYS: &[FidelityKey] = &[
         doc: "Cholesky: 1 (default) = while Jacobian blocks changed, CG preconditioned by the last factor (refactor when it ages), 0 = refactor whenever a block changed",
     },
     FidelityKey {
+        name: "reuse_tol",
+        doc: "Cholesky with factor_reuse: relative residual of the stale-factor PCG (default 1e-6)",
+    },
+    FidelityKey {
         name: "lazy_threshold",
         doc: "lazy Jacobian: rebuild an element's block when its rotation moved more than this (rad); default 0 = always",
     },
@@ -722,6 +746,13 @@ impl FemFactory {
             1.0 => true,
             v => return Err(BuildError::bad("factor_reuse", format!("must be 0 or 1, got {v}"))),
         };
+        let reuse_tol = full.extra("reuse_tol", REUSE_TOL);
+        if !(reuse_tol > 0.0 && reuse_tol < 1.0) {
+            return Err(BuildError::bad(
+                "reuse_tol",
+                format!("must be in (0, 1), got {reuse_tol}"),
+            ));
+        }
         let threads = full.extra("threads", 2.0);
         if !(1.0..=64.0).contains(&threads) || threads.fract() != 0.0 {
             return Err(BuildError::bad(
@@ -735,6 +766,7 @@ impl FemFactory {
             solver,
             lazy_threshold: nonneg("lazy_threshold")?,
             factor_reuse,
+            reuse_tol,
             rayleigh_mass: nonneg("rayleigh_mass")?,
             rayleigh_stiffness: nonneg("rayleigh_stiffness")?,
             iterations: full.iterations.unwrap_or(1),

@@ -141,21 +141,12 @@ impl Elements {
     /// about a third of the arithmetic of [`warp`]. Same symmetry
     /// (`K_ba = K_ab^T` exactly, symmetric diagonal blocks).
     pub fn warped_stiffness(&self, mu: f64, lambda: f64, e: usize, r: &M3) -> ElemBlocks {
-        let g = &self.grads[e];
-        let v = self.vol[e];
-        let h = g.map(|ga| r * ga);
-        let (vm, vl) = (v * mu, v * lambda);
+        let mut up = [M3::zeros(); 10];
+        self.warped_upper(mu, lambda, e, r, &mut up);
         let mut out = [M3::zeros(); 16];
         for a in 0..4 {
             for b in a..4 {
-                let d = vm * g[a].dot(&g[b]);
-                let k = if a == b {
-                    // mu h h^T + lambda h h^T, symmetric entry by entry.
-                    let c = vm + vl;
-                    M3::from_fn(|i, j| c * (h[a][i] * h[a][j]) + if i == j { d } else { 0.0 })
-                } else {
-                    M3::from_fn(|i, j| vm * h[b][i] * h[a][j] + vl * h[a][i] * h[b][j] + if i == j { d } else { 0.0 })
-                };
+                let k = up[UPPER[a][b]];
                 out[4 * a + b] = k;
                 if b != a {
                     out[4 * b + a] = k.transpose();
@@ -164,6 +155,49 @@ impl Elements {
         }
         out
     }
+
+    /// The 10 blocks `K_ab`, `a <= b`, of [`Elements::warped_stiffness`]
+    /// (same formula and arithmetic), written in place at `UPPER[a][b]`:
+    /// what the assembly needs (`K_ba = K_ab^T`).
+    pub fn warped_upper(&self, mu: f64, lambda: f64, e: usize, r: &M3, out: &mut UpperBlocks) {
+        let g = &self.grads[e];
+        let v = self.vol[e];
+        let h = g.map(|ga| r * ga);
+        let (vm, vl) = (v * mu, v * lambda);
+        for a in 0..4 {
+            for b in a..4 {
+                let d = vm * g[a].dot(&g[b]);
+                out[UPPER[a][b]] = if a == b {
+                    // mu h h^T + lambda h h^T, symmetric entry by entry.
+                    let c = vm + vl;
+                    M3::from_fn(|i, j| c * (h[a][i] * h[a][j]) + if i == j { d } else { 0.0 })
+                } else {
+                    M3::from_fn(|i, j| vm * h[b][i] * h[a][j] + vl * h[a][i] * h[b][j] + if i == j { d } else { 0.0 })
+                };
+            }
+        }
+    }
+}
+
+/// The blocks `K_ab`, `a <= b`, of a symmetric 12x12 element matrix, at
+/// index [`UPPER`]`[a][b]`.
+pub type UpperBlocks = [M3; 10];
+
+/// Index of block `(a, b)`, `a <= b`, in [`UpperBlocks`] (row-major upper
+/// triangle); entries below the diagonal are unused.
+pub const UPPER: [[usize; 4]; 4] = [[0, 1, 2, 3], [0, 4, 5, 6], [0, 0, 7, 8], [0, 0, 0, 9]];
+
+/// The upper blocks of a full element matrix (its lower blocks are taken
+/// as the transposes: exact for the symmetric warped stiffness, the
+/// symmetric part up to round-off for the exact and projected Hessians).
+pub fn upper_of(k: &ElemBlocks) -> UpperBlocks {
+    let mut out = [M3::zeros(); 10];
+    for a in 0..4 {
+        for b in a..4 {
+            out[UPPER[a][b]] = k[4 * a + b];
+        }
+    }
+    out
 }
 
 /// Warp rest stiffness blocks by `R`: `K_ab = R K0_ab R^T`. `K0` is

@@ -29,7 +29,7 @@ pub mod material;
 pub mod statics;
 
 pub use assembly::{LinearSolver, Ordering};
-pub use dynamics::{DynParams, FemFactory, FemModel, Integrator};
+pub use dynamics::{DynParams, FemFactory, FemModel, Integrator, REUSE_TOL};
 pub use element::Jacobian;
 pub use material::{Law, Material};
 pub use statics::{Constraint, Loads, StaticInfo, StaticParams, pressure_loads, solve_static};

@@ -286,7 +286,7 @@ pub(crate) fn equilibrate(
         r: vec![0.0; 3 * n],
         ..Default::default()
     };
-    let mut jac = match law {
+    let jac = match law {
         Law::Linear => Jacobian::Warped,
         _ => Jacobian::Exact,
     };
@@ -353,19 +353,24 @@ pub(crate) fn equilibrate(
         match params.solver {
             LinearSolver::Cholesky(ord) => {
                 if let Err(e) = sys.factorize(&solid.pat, ord) {
-                    if jac == Jacobian::Exact {
-                        // Indefinite exact Hessian: clamp each element's
-                        // negative eigenvalues (keeps the curvature of the
-                        // rotation and volume terms). The warped stiffness
-                        // `R K0 R^T` drops `(lambda tr(S - I) - 2 mu) dR`, which
-                        // for nu -> 1/2 under compression is large: Newton then
-                        // crawled (rate ~0.8 per iteration at nu = 0.499) and
-                        // failed the truth-cube scene at 12.5 % compression.
-                        jac = Jacobian::Projected;
-                        out.fallbacks += 1;
-                        continue;
+                    if jac != Jacobian::Exact {
+                        return Err(FemError::LinearSolver(e));
                     }
-                    return Err(FemError::LinearSolver(e));
+                    // Indefinite exact Hessian: for this iteration only,
+                    // clamp each element's negative eigenvalues (keeps the
+                    // curvature of the rotation and volume terms). The
+                    // warped stiffness `R K0 R^T` drops
+                    // `(lambda tr(S - I) - 2 mu) dR`, which for nu -> 1/2
+                    // under compression is large: Newton then crawled (rate
+                    // ~0.8 per iteration at nu = 0.499) and failed the
+                    // truth-cube scene at 12.5 % compression. The next
+                    // iteration tries the exact Hessian again (quadratic
+                    // convergence once it is positive definite: see
+                    // tests/issue_newton_exact_after_fallback.rs).
+                    solid.evaluate(x, Some(Jacobian::Projected), 0.0);
+                    out.fallbacks += 1;
+                    sys.set_values(&solid.pat, &solid.kmat, 1.0, &zero_mass, 0.0);
+                    sys.factorize(&solid.pat, ord).map_err(FemError::LinearSolver)?;
                 }
                 sys.solve_cholesky(&mut dx);
             }
