@@ -44,7 +44,7 @@ pub mod tissue;
 pub use ghost::{GhostSurface, SurfaceHit, project_particle_triangle};
 pub use hash::BoxHash;
 pub use mesh::block_tet_mesh;
-pub use rod::{PbdRod, PbdRodFactory, RodSettings};
+pub use rod::{PbdRod, PbdRodFactory, RodSettings, RodSolver};
 pub use tissue::{
     ContactParticle, ParticleContact, PbdTissue, PbdTissueFactory, StaticInfo, StaticParams, TissueSettings,
     project_volume, tet_volume, tet_volume_gradients,
