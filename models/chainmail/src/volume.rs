@@ -308,11 +308,7 @@ impl VesselLattice {
         let (mut v, mut dv, mut wsum, mut dwsum) = (Vec3::zeros(), Mat3::zeros(), 0.0, Vec3::zeros());
         for c in 0..8 {
             let o = [c & 1, (c >> 1) & 1, (c >> 2) & 1];
-            let k = [
-                b[0] as i32 + o[0] as i32,
-                b[1] as i32 + o[1] as i32,
-                b[2] as i32 + o[2] as i32,
-            ];
+            let k = [b[0] as i32 + o[0], b[1] as i32 + o[1], b[2] as i32 + o[2]];
             let Some(&e) = self.cells.get(&k) else { continue };
             let wk = |a: usize, s: f64| if o[a] == 1 { s } else { 1.0 - s };
             let sg = |a: usize| if o[a] == 1 { 1.0 } else { -1.0 };
