@@ -50,13 +50,31 @@ pub struct GateConfig {
     pub workload: Vec<Workload>,
 }
 
-/// `benches/gate-baseline.json`: instructions per step by workload key.
+/// `benches/gate-baseline.json`: instructions per step by workload key, one
+/// set per CPU model (counts are tied to the CPU type: valgrind hides some
+/// instruction sets, and code may pick a SIMD path at run time), so a
+/// project whose machines change CPU type keeps a baseline for each.
 #[derive(Debug, Clone, Default, Deserialize, Serialize)]
 pub struct Baseline {
-    /// CPU model the counts were taken on (counts are tied to it).
-    pub cpu: String,
-    /// Instructions per step.
-    pub instructions_per_step: BTreeMap<String, f64>,
+    /// Instructions per step by workload key, by CPU model name.
+    #[serde(default)]
+    pub by_cpu: BTreeMap<String, BTreeMap<String, f64>>,
+    /// Single-CPU form of earlier baseline files (read, never written).
+    #[serde(default, skip_serializing)]
+    cpu: Option<String>,
+    #[serde(default, skip_serializing)]
+    instructions_per_step: Option<BTreeMap<String, f64>>,
+}
+
+impl Baseline {
+    /// Parse a baseline file, accepting the earlier single-CPU form.
+    pub fn parse(text: &str) -> Result<Self, String> {
+        let mut b: Baseline = serde_json::from_str(text).map_err(|e| e.to_string())?;
+        if let (Some(cpu), Some(counts)) = (b.cpu.take(), b.instructions_per_step.take()) {
+            b.by_cpu.entry(cpu).or_insert(counts);
+        }
+        Ok(b)
+    }
 }
 
 /// Load the gate configuration.
@@ -171,30 +189,31 @@ pub struct Verdict {
 
 /// Count every workload; compare with the baseline (or write it).
 pub fn run_gate(exe: &Path, cfg: &GateConfig, baseline_path: &Path, update: bool) -> Result<Vec<Verdict>, String> {
-    let base: Baseline = match std::fs::read_to_string(baseline_path) {
-        Ok(t) => serde_json::from_str(&t).map_err(|e| format!("{}: {e}", baseline_path.display()))?,
+    let mut all = match std::fs::read_to_string(baseline_path) {
+        Ok(t) => Baseline::parse(&t).map_err(|e| format!("{}: {e}", baseline_path.display()))?,
         Err(_) => Baseline::default(),
     };
     let cpu = cpu_model();
-    if !update && !base.cpu.is_empty() && base.cpu != cpu {
-        return Err(format!(
-            "baseline was recorded on `{}` but this CPU is `{cpu}`: instruction counts are not comparable; refresh with `surgbench gate --update`",
-            base.cpu
-        ));
-    }
-    let mut verdicts = Vec::new();
-    let mut new = Baseline {
-        cpu: cpu.clone(),
-        instructions_per_step: BTreeMap::new(),
+    let base = match all.by_cpu.get(&cpu) {
+        Some(b) => b.clone(),
+        None if update => BTreeMap::new(),
+        None => {
+            let known: Vec<&str> = all.by_cpu.keys().map(String::as_str).collect();
+            return Err(format!(
+                "no baseline for this CPU `{cpu}` (recorded: {known:?}): instruction counts are not comparable across CPU types; record one with `surgbench gate --update`"
+            ));
+        }
     };
+    let mut verdicts = Vec::new();
+    let mut new = BTreeMap::new();
     for w in &cfg.workload {
         let a = count(exe, w, w.steps)?;
         let b = count(exe, w, 2 * w.steps)?;
         let per_step = (b - a) / w.steps as f64;
         let key = w.key();
-        let old = base.instructions_per_step.get(&key).copied();
+        let old = base.get(&key).copied();
         let pass = update || old.is_some_and(|o| per_step <= o * (1.0 + cfg.margin));
-        new.instructions_per_step.insert(key.clone(), per_step);
+        new.insert(key.clone(), per_step);
         verdicts.push(Verdict {
             key,
             measured: per_step,
@@ -203,9 +222,33 @@ pub fn run_gate(exe: &Path, cfg: &GateConfig, baseline_path: &Path, update: bool
         });
     }
     if update {
-        let json = serde_json::to_string_pretty(&new).map_err(|e| e.to_string())?;
+        all.by_cpu.insert(cpu, new);
+        let json = serde_json::to_string_pretty(&all).map_err(|e| e.to_string())?;
         std::fs::write(baseline_path, json + "\n")
             .map_err(|e| format!("cannot write {}: {e}", baseline_path.display()))?;
     }
     Ok(verdicts)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Earlier single-CPU files still load (as one CPU's counts), and the
+    /// per-CPU form round-trips keeping every CPU.
+    #[test]
+    fn baselines_load_old_and_per_cpu_forms() {
+        let old = r#"{"cpu": "Intel X", "instructions_per_step": {"der/a/": 10.0}}"#;
+        let b = Baseline::parse(old).unwrap();
+        assert_eq!(b.by_cpu["Intel X"]["der/a/"], 10.0);
+        let mut b2 = b.clone();
+        b2.by_cpu
+            .insert("AMD Y".into(), BTreeMap::from([("der/a/".to_string(), 12.0)]));
+        let text = serde_json::to_string(&b2).unwrap();
+        assert!(!text.contains("instructions_per_step"), "{text}");
+        let back = Baseline::parse(&text).unwrap();
+        assert_eq!(back.by_cpu.len(), 2);
+        assert_eq!(back.by_cpu["AMD Y"]["der/a/"], 12.0);
+        assert!(Baseline::parse("{not json").is_err());
+    }
 }
