@@ -33,8 +33,9 @@
 //! chain-mail's wall may deviate from it (fidelity extras `vessel_slack`,
 //! `vessel_beta`).
 
-use crate::rules::{LinkParams, project_into_box, relaxation_target};
+use crate::rules::{LinkParams, project_into_box};
 use std::collections::{HashMap, VecDeque};
+use std::hash::{BuildHasherDefault, Hasher};
 use std::sync::Arc;
 use surgbench_core::motion::VesselMotion;
 use surgbench_core::{Iso3, Mat3, Sdf, Vec3};
@@ -63,6 +64,32 @@ pub struct LatticeConfig {
     pub iterations: usize,
 }
 
+/// Hasher for lattice cell indices: one multiply-rotate per word (the
+/// interpolation looks up eight cells per query, thousands per step, where
+/// the default SipHash dominated the cost). Fixed, so lookups are
+/// deterministic; cell keys are not adversarial.
+#[derive(Debug, Clone, Copy, Default)]
+struct CellHasher(u64);
+
+impl Hasher for CellHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(b as u64);
+        }
+    }
+    fn write_i32(&mut self, i: i32) {
+        self.write_u64(i as u32 as u64);
+    }
+    fn write_u64(&mut self, i: u64) {
+        self.0 = (self.0.rotate_left(5) ^ i).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+}
+
+type CellMap = HashMap<[i32; 3], usize, BuildHasherDefault<CellHasher>>;
+
 /// Largest lattice the model builds (elements); a finer spacing or longer
 /// reach is refused with its count rather than exhausting memory.
 pub const MAX_ELEMENTS: usize = 2_000_000;
@@ -78,14 +105,25 @@ pub struct VesselLattice {
     motion: Arc<dyn VesselMotion>,
     links: LinkParams,
     iterations: usize,
-    cells: HashMap<[i32; 3], usize>,
+    cells: CellMap,
     ijk: Vec<[i32; 3]>,
     kind: Vec<Kind>,
     rest: Vec<Vec3>,
     x: Vec<Vec3>,
     x_old: Vec<Vec3>,
-    /// Face neighbours among driven and wall elements.
-    ring: Vec<Vec<usize>>,
+    /// Face neighbours among driven and wall elements, compressed:
+    /// element `e`'s are `ring[ring_start[e]..ring_start[e + 1]]`.
+    ring_start: Vec<usize>,
+    ring: Vec<usize>,
+    /// Driven elements.
+    driven: Vec<usize>,
+    /// Wall elements with a neighbour, each with `X_e - mean_j X_j` over
+    /// its ring: the relaxation target `mean_j (x_j + X_e - X_j)` is
+    /// `mean_j x_j` plus this constant.
+    wall: Vec<(usize, Vec3)>,
+    /// Scratch: which elements this step's propagation moved, and its queue.
+    moved: Vec<bool>,
+    queue: VecDeque<usize>,
     /// `(blood element, sponsor)` in breadth-first order from the wall.
     blood: Vec<(usize, usize)>,
     wall_count: usize,
@@ -117,7 +155,7 @@ impl VesselLattice {
         if !(rest_sdf.distance(&origin) < 0.0) {
             return Err("the clamp is not inside the vessel lumen: no lattice to flood".into());
         }
-        let mut cells = HashMap::new();
+        let mut cells = CellMap::default();
         let (mut ijk, mut kind, mut rest) = (Vec::new(), Vec::new(), Vec::new());
         let mut queue = VecDeque::from([[0i32; 3]]);
         cells.insert([0i32; 3], 0usize);
@@ -164,20 +202,29 @@ impl VesselLattice {
             }
         }
         let ne = ijk.len();
-        let mut ring = vec![Vec::new(); ne];
+        let (mut ring_start, mut ring) = (vec![0], Vec::new());
         for e in 0..ne {
-            if kind[e] == Kind::Blood {
-                continue;
-            }
-            for f in FACES {
-                let k = ijk[e];
-                if let Some(&j) = cells.get(&[k[0] + f[0], k[1] + f[1], k[2] + f[2]])
-                    && kind[j] != Kind::Blood
-                {
-                    ring[e].push(j);
+            if kind[e] != Kind::Blood {
+                for f in FACES {
+                    let k = ijk[e];
+                    if let Some(&j) = cells.get(&[k[0] + f[0], k[1] + f[1], k[2] + f[2]])
+                        && kind[j] != Kind::Blood
+                    {
+                        ring.push(j);
+                    }
                 }
             }
+            ring_start.push(ring.len());
         }
+        let driven: Vec<usize> = (0..ne).filter(|&e| kind[e] == Kind::Driven).collect();
+        let wall: Vec<(usize, Vec3)> = (0..ne)
+            .filter(|&e| kind[e] == Kind::Wall && ring_start[e + 1] > ring_start[e])
+            .map(|e| {
+                let nb = &ring[ring_start[e]..ring_start[e + 1]];
+                let mean = nb.iter().map(|&j| rest[j]).sum::<Vec3>() / nb.len() as f64;
+                (e, rest[e] - mean)
+            })
+            .collect();
         // breadth-first from the wall layer inwards: each blood element's
         // sponsor is the neighbour that reached it first
         let mut blood = Vec::new();
@@ -215,7 +262,12 @@ impl VesselLattice {
             x: rest.clone(),
             x_old: rest.clone(),
             rest,
+            ring_start,
             ring,
+            driven,
+            wall,
+            moved: vec![false; ne],
+            queue: VecDeque::new(),
             blood,
             wall_count,
             time: 0.0,
@@ -246,44 +298,36 @@ impl VesselLattice {
     pub fn advance(&mut self, t: f64) {
         self.x_old.clone_from(&self.x);
         self.time = t;
-        let ne = self.x.len();
-        let mut moved = vec![false; ne];
-        let mut queue = VecDeque::new();
-        for e in 0..ne {
-            if self.kind[e] == Kind::Driven {
-                self.x[e] = self.rest[e] + self.motion.displacement(&self.rest[e], t);
-                moved[e] = true;
-                queue.push_back(e);
-            }
+        self.moved.fill(false);
+        self.queue.clear();
+        for &e in &self.driven {
+            self.x[e] = self.rest[e] + self.motion.displacement(&self.rest[e], t);
+            self.moved[e] = true;
+            self.queue.push_back(e);
         }
         // geometric deformation: propagate from the moved sponsors
-        while let Some(s) = queue.pop_front() {
-            for idx in 0..self.ring[s].len() {
-                let k = self.ring[s][idx];
-                if moved[k] {
+        while let Some(s) = self.queue.pop_front() {
+            for idx in self.ring_start[s]..self.ring_start[s + 1] {
+                let k = self.ring[idx];
+                if self.moved[k] {
                     continue;
                 }
                 let d = self.axes.tr_mul(&(self.rest[k] - self.rest[s]));
                 let (p, m) = project_into_box(&self.x[s], &self.x[k], &d, &self.axes, &self.links);
                 if m {
                     self.x[k] = p;
-                    moved[k] = true;
-                    queue.push_back(k);
+                    self.moved[k] = true;
+                    self.queue.push_back(k);
                 }
             }
         }
-        // physical optimization of the wall layer
-        let mut pred = Vec::with_capacity(6);
+        // physical optimization of the wall layer: P* = mean_j (x_j + X_e -
+        // X_j) (the minimiser of sum ||P* - Q_j||^2, `relaxation_target`)
         for _ in 0..self.iterations {
-            for e in 0..ne {
-                if self.kind[e] != Kind::Wall || self.ring[e].is_empty() {
-                    continue;
-                }
-                pred.clear();
-                for &j in &self.ring[e] {
-                    pred.push(self.x[j] + (self.rest[e] - self.rest[j]));
-                }
-                self.x[e] = relaxation_target(&pred);
+            for &(e, c) in &self.wall {
+                let nb = &self.ring[self.ring_start[e]..self.ring_start[e + 1]];
+                let sum: Vec3 = nb.iter().map(|&j| self.x[j]).sum();
+                self.x[e] = sum / nb.len() as f64 + c;
             }
         }
         // blood follows its sponsor: q* = q + (p* - p)
