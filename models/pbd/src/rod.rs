@@ -22,6 +22,14 @@
 //! `dtheta`), and the 3x3 blocks `J W J^T` are built exactly at the current
 //! state rather than with the isotropic approximation of K&S.
 //!
+//! Per iteration the constraints are solved either one at a time by
+//! non-linear Gauss-Seidel (fidelity `solver = 0`, the default) or all at
+//! once by the direct banded solve of Deul, Kugelstadt, Weiler & Bender 2018
+//! (`solver = 1`, [`RodSolver::Direct`]), which carries a tip load to the
+//! clamp in one iteration (measured: a dead load P L^2/(EI) = 2 settles at one
+//! substep of 1 ms with 4 iterations at 10-80 segments, residual < 1e-14,
+//! where Gauss-Seidel diverges below 64 substeps).
+//!
 //! Compliances come from the Cosserat strain energy
 //! `U = 1/2 l Gamma^T diag(GA, GA, EA) Gamma + 1/2 l (Omega - Omega0)^T
 //! diag(EI, EI, GJ) (Omega - Omega0)` (shear correction factor 1), so
