@@ -324,6 +324,7 @@ fn unsupported_scene(f: &dyn ModelFactory) -> Option<(Capability, Scene)> {
             driven_nodes: vec![],
             partial_fixed: vec![],
             pressure_faces: vec![],
+            indenter: None,
         }));
         return Some((Capability::Tissue, s));
     }

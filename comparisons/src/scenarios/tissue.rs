@@ -1,6 +1,7 @@
 //! Tissue statics: block compression, Lamé tube, volume preservation under
-//! squash and twist, the Truth Cube phantom, and a catheter tip (bonded
-//! flat punch) indenting a vessel-wall sector.
+//! squash and twist, the Truth Cube phantom, a catheter tip (bonded flat
+//! punch) indenting a vessel-wall sector, and a rigid sphere pressed into a
+//! block (frictionless contact, Hertz).
 //!
 //! Shared conventions (SI units: m, kg, s, N, Pa, rad):
 //! * every scene holds exactly one [`TissueBody`], no gravity, and is static:
@@ -52,6 +53,7 @@ pub fn all() -> Vec<&'static dyn Scenario> {
         &VolumePreservation,
         &TruthCube,
         &WallIndentation,
+        &SphereIndentation,
     ]
 }
 
@@ -1415,3 +1417,371 @@ impl Scenario for WallIndentation {
         }))
     }
 }
+
+// ---------------------------------------------------------------------------
+// sphere-indentation
+// ---------------------------------------------------------------------------
+
+/// Hertz force (N) of a rigid sphere of radius `r` (m) pressed `delta` (m)
+/// into an elastic half-space (`E` Pa, `nu`), frictionless:
+/// `F = (4/3) E* sqrt(R) delta^(3/2)`, `E* = E / (1 - nu^2)` (Hertz 1882;
+/// Johnson, *Contact Mechanics*, 1985, eqs. 4.22-4.23). Small strain, the
+/// sphere taken as a paraboloid (`a << R`).
+pub fn hertz_force(r: f64, delta: f64, e: f64, nu: f64) -> f64 {
+    4.0 / 3.0 * e / (1.0 - nu * nu) * r.sqrt() * delta.max(0.0).powf(1.5)
+}
+
+/// Hertz contact radius (m): `a = sqrt(R delta)` (Johnson 1985, eq. 4.22).
+pub fn hertz_contact_radius(r: f64, delta: f64) -> f64 {
+    (r * delta.max(0.0)).sqrt()
+}
+
+/// The same contact with the exact spherical profile instead of Hertz's
+/// paraboloid, still linear elasticity on a half-space (Segedin 1957,
+/// Mathematika 4; Maugis, *Contact, Adhesion and Rupture of Elastic
+/// Solids*, 2000, eq. 3.103): with `L = ln((R + a)/(R - a))`,
+/// `delta = (a/2) L` and `F = (E*/2) ((a^2 + R^2) L - 2 a R)`. Returns
+/// `(F (N), a (m))` at `delta` (solved for `a` by bisection; `delta < R`).
+/// Its ratio to [`hertz_force`] is the paraboloid bias of the Hertz
+/// reference: expanding both in `a / R`, `1 - delta / (10 R) + O((delta/R)^2)`
+/// (the sphere is softer: less material under it than under the paraboloid).
+pub fn sphere_force_exact(r: f64, delta: f64, e: f64, nu: f64) -> (f64, f64) {
+    let depth = |a: f64| 0.5 * a * ((r + a) / (r - a)).ln();
+    let (mut lo, mut hi) = (0.0, r * (1.0 - 1e-12));
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if depth(mid) < delta {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let a = 0.5 * (lo + hi);
+    let l = ((r + a) / (r - a)).ln();
+    (0.5 * e / (1.0 - nu * nu) * ((a * a + r * r) * l - 2.0 * a * r), a)
+}
+
+/// Where the contact radius sits in the graded mesh's reference coordinate
+/// `s` (0..1): it spans `3 n / 8` cells of a mesh with `n` cells per edge.
+const SPHERE_A_AT: f64 = 0.375;
+/// End of the uniform inner zone of the grading (reference coordinate).
+const SPHERE_UNIFORM_TO: f64 = 0.5;
+
+/// The grading map of the quarter block (see [`sphere_block_mesh`]): radius
+/// `rho(s)` (m) of the cube shell at reference max-norm `s` in `[0, 1]`:
+/// `rho = c s` for `s <= 1/2` (uniform cells of size `c / n`), then
+/// `c s + (W - c) ((s - 1/2) / (1/2))^2` up to `rho(1) = W`; `c = a / (3/8)`
+/// puts the Hertz contact radius `a` at `s = 3/8`.
+pub fn sphere_grading(s: f64, a: f64, half_width: f64) -> f64 {
+    let c = a / SPHERE_A_AT;
+    let t = ((s - SPHERE_UNIFORM_TO) / (1.0 - SPHERE_UNIFORM_TO)).max(0.0);
+    c * s + (half_width - c) * t * t
+}
+
+/// Quarter block `[0, W]^2 x [-W, 0]` (m) for a sphere pressed into its top
+/// face `z = 0` at the corner `x = y = 0` (the symmetry axis), with
+/// `n` cells per edge graded towards the contact: the structured block on
+/// the unit cube, node `xi` (depth `zeta = xi_z`) moved to
+/// `(xi_x, xi_y, -zeta) rho(s) / s` with `s = max(xi_x, xi_y, zeta)` and
+/// `rho` = [`sphere_grading`]. Cube shells `s = const` map to cube shells,
+/// so faces stay planar; cells are cubes of size `a / (3 n / 8)` inside
+/// `s <= 1/2` (twice the contact radius) and grow outside, radially up to
+/// `rho'(1) / rho(1) < 4 + c / W` times their tangential size. The map's
+/// kinks (`xi_i = xi_j`) are planes of the Kuhn split, so every tet is the
+/// image of one smooth piece.
+pub fn sphere_block_mesh(a: f64, half_width: f64, n: usize) -> TetMesh {
+    let mut m = mesh::block(Vec3::new(1.0, 1.0, 1.0), [n, n, n]);
+    for p in &mut m.nodes {
+        let s = p.x.max(p.y).max(p.z);
+        let f = if s > 0.0 {
+            sphere_grading(s, a, half_width) / s
+        } else {
+            0.0
+        };
+        *p = Vec3::new(p.x * f, p.y * f, -p.z * f);
+    }
+    mesh::orient_positive(&mut m);
+    m
+}
+
+/// A rigid sphere pressed into the flat top of a large block: Hertz.
+///
+/// The catheter tip, in its textbook form: a rigid frictionless
+/// sphere of radius `R` (the scene's [`surgbench_core::scene::SphereIndenter`],
+/// so it needs `Capability::TissueContact`) touches the top face `z = 0` of
+/// a block at the origin and moves down by `depth` (`delta`) along the
+/// ramp. One quarter is modelled: the block is `[0, W]^2 x [-W, 0]` with
+/// `W = size_ratio a` (`a = sqrt(R delta)` the Hertz contact radius),
+/// rollers on the symmetry planes `x = 0` (x held) and `y = 0` (y held),
+/// the bottom `z = -W` fixed, the outer sides free. The mesh
+/// ([`sphere_block_mesh`]) is graded: uniform cubes of size `a / (3 n / 8)`
+/// out to `2a` (the contact radius spans 1.5, 3, 6, 12 cells at mesh levels
+/// 0-3), growing outside.
+///
+/// The model reports the force the body exerts on the sphere as
+/// `hand_force`; the scene is a quarter, so the full force is
+/// `4 hand_force.z`. Scores: `force_error_rel` (primary) at full depth
+/// against Hertz ([`hertz_force`]), `force_curve_error_rel` (RMS over the
+/// ramp against `F_H(s delta)` at every step's load factor `s`, accumulated
+/// in [`ScenarioRun::observe_step`]), `contact_radius_error_rel` (the
+/// contact edge located between the last touching and first free surface
+/// node on the `y = 0` line, so resolved to half a cell:
+/// `contact_radius_resolution_rel` says how much), `penetration_over_depth`
+/// (deepest surface node inside the sphere), and
+/// `paraboloid_bias_rel` (the exact-sphere force of
+/// [`sphere_force_exact`] over Hertz, minus one: the part of the error that
+/// is Hertz's, not the model's).
+///
+/// Expected biases of Hertz against an exact solution of this scene (all
+/// make the block stiffer than Hertz, except the free sides and the
+/// sphere): the paraboloid, `-delta / (10 R)` to first order (`-0.1 %` at
+/// the default `delta / R = 0.01`); the finite depth, a layer bonded to a rigid base is
+/// stiffer by `1 + 0.88 a / h + ...` at `nu = 0.3` (Dimitriadis et al.
+/// 2002, Biophys. J. 82, eq. 12, with `h = W`: `+1.8 %` at `W = 50 a`);
+/// finite strain (the default corotational law; strains ~ `a / R`): of
+/// order `a / R = 10 %` times a small constant — the linear law
+/// (`material_law = 1`) removes it. Measured values are in
+/// `comparisons/tests/sphere_indentation.rs`.
+pub struct SphereIndentation;
+
+const SPHERE_PARAMS: &[ParamSpec] = &[
+    p(
+        "sphere_radius",
+        1e-3,
+        "m",
+        Range::Positive,
+        "indenter radius (a 6F catheter tip is 1 mm in radius)",
+    ),
+    p(
+        "depth",
+        1e-5,
+        "m",
+        Range::Positive,
+        "indentation at the end of the ramp, <= 0.05 sphere_radius (Hertz is a small-strain theory; default delta/R = 0.01)",
+    ),
+    p(
+        "youngs_modulus",
+        1e4,
+        "Pa",
+        Range::Positive,
+        "Young's modulus (soft tissue, 10 kPa)",
+    ),
+    p(
+        "poisson_ratio",
+        0.3,
+        "1",
+        Range::Closed(0.0, 0.45),
+        "Poisson ratio (linear tets lock as it nears 1/2)",
+    ),
+    p(
+        "size_ratio",
+        50.0,
+        "1",
+        Range::Closed(5.0, 500.0),
+        "block half-width and depth over the Hertz contact radius sqrt(R delta)",
+    ),
+    DENSITY,
+    RAMP,
+    DURATION,
+    SETTLE,
+];
+
+struct SphereRun {
+    scene: Scene,
+    mesh: TetMesh,
+    radius: f64,
+    depth: f64,
+    /// Hertz force on the whole sphere at full depth (N).
+    force_ref: f64,
+    contact_radius: f64,
+    paraboloid_bias: f64,
+    /// Top-surface nodes on the `y = 0` line, by rest `x`.
+    line: Vec<usize>,
+    top: Vec<usize>,
+    half_width: f64,
+    track: Mutex<CurveTrack>,
+}
+
+impl SphereRun {
+    /// Force on the whole sphere (N): four quarters, the body pushes up.
+    fn force(obs: &Observation) -> f64 {
+        4.0 * obs.hand_force.z
+    }
+    fn centre(&self, t: f64) -> Option<Vec3> {
+        let s = self.scene.control.command_at(t).insertion;
+        let Body::Tissue(b) = &self.scene.bodies[0] else {
+            return None;
+        };
+        b.indenter.map(|i| i.centre_at(s))
+    }
+}
+
+impl ScenarioRun for SphereRun {
+    fn scene(&self) -> &Scene {
+        &self.scene
+    }
+    fn score(&self, obs: &Observation) -> BTreeMap<String, f64> {
+        let mut m = BTreeMap::new();
+        let Some(t) = tissue_of(obs, &self.mesh) else {
+            return m;
+        };
+        let Some(c) = self.centre(obs.time) else {
+            return m;
+        };
+        let f = Self::force(obs);
+        m.insert("reaction_force_n".into(), f);
+        m.insert("reference_force_n".into(), self.force_ref);
+        m.insert("force_error_rel".into(), (f - self.force_ref).abs() / self.force_ref);
+        m.insert("force_ratio".into(), f / self.force_ref);
+        m.insert("paraboloid_bias_rel".into(), self.paraboloid_bias);
+        let pen = self
+            .top
+            .iter()
+            .map(|&i| self.radius - (t.nodes[i] - c).norm())
+            .fold(0.0, f64::max);
+        m.insert("penetration_over_depth".into(), pen / self.depth);
+        // Contact edge on the y = 0 line: between the last node inside (or
+        // on) the sphere and the next one, by deformed distance from the axis.
+        let inside: Vec<bool> = self
+            .line
+            .iter()
+            .map(|&i| (t.nodes[i] - c).norm() <= self.radius)
+            .collect();
+        if let Some(k) = inside.iter().rposition(|&b| b)
+            && k + 1 < self.line.len()
+        {
+            let (x0, x1) = (t.nodes[self.line[k]].x, t.nodes[self.line[k + 1]].x);
+            let a_h = 0.5 * (x0 + x1);
+            m.insert(
+                "contact_radius_error_rel".into(),
+                (a_h - self.contact_radius).abs() / self.contact_radius,
+            );
+            m.insert(
+                "contact_radius_resolution_rel".into(),
+                0.5 * (x1 - x0) / self.contact_radius,
+            );
+        }
+        let tr = self.track.lock().unwrap_or_else(|e| e.into_inner());
+        if tr.ref2 > 0.0 {
+            m.insert("force_curve_error_rel".into(), (tr.err2 / tr.ref2).sqrt());
+        }
+        drop(tr);
+        common_metrics(&mut m, &self.mesh, t);
+        m
+    }
+    fn observe_step(&self, obs: &Observation) {
+        let s = self.scene.control.command_at(obs.time).insertion;
+        let mut c = self.track.lock().unwrap_or_else(|e| e.into_inner());
+        match c.last_t {
+            Some(t) if obs.time < t => *c = CurveTrack::default(),
+            Some(t) if obs.time == t => return,
+            _ => {}
+        }
+        c.last_t = Some(obs.time);
+        // Hertz along the ramp: F(s) = F_ref s^(3/2) at depth s delta.
+        let want = self.force_ref * s.max(0.0).powf(1.5);
+        c.err2 += (Self::force(obs) - want).powi(2);
+        c.ref2 += want * want;
+    }
+    fn energy_scale(&self) -> f64 {
+        // Hertz work (2/5) F delta on the quarter, with a factor 10 of room.
+        self.force_ref * self.depth
+    }
+    fn length_scale(&self) -> f64 {
+        self.half_width
+    }
+}
+
+impl Scenario for SphereIndentation {
+    fn id(&self) -> &'static str {
+        "sphere-indentation"
+    }
+    fn description(&self) -> &'static str {
+        "rigid frictionless sphere (R 1 mm) pressed into a large block (quarter, graded mesh): contact force and radius"
+    }
+    fn family(&self) -> Family {
+        Family::Tissue
+    }
+    fn params(&self) -> &'static [ParamSpec] {
+        SPHERE_PARAMS
+    }
+    fn reference(&self) -> &'static str {
+        "Hertz 1882 (Johnson 1985 eq. 4.22-4.23): F = 4/3 E* sqrt(R) delta^1.5, a = sqrt(R delta); biased by the finite block (+~2 %) and the paraboloid (-0.1 %)"
+    }
+    fn primary_error(&self) -> &'static str {
+        "force_error_rel"
+    }
+    /// Mesh levels 0-2 with 8 quasi-static load steps over the default ramp
+    /// (`dt = ramp / 8`): level 3 (32^3 cells) takes minutes per run.
+    fn sweep(&self) -> Vec<Fidelity> {
+        (0..=2)
+            .map(|l| Fidelity {
+                mesh_level: Some(l),
+                dt: Some(SPHERE_DT),
+                ..Default::default()
+            })
+            .collect()
+    }
+    fn quick_sweep(&self) -> Vec<Fidelity> {
+        self.sweep().into_iter().take(2).collect()
+    }
+    fn instantiate_at(&self, p: &Params, fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
+        let level = mesh_level(self.id(), fidelity)?;
+        let (radius, depth, e, nu) = (
+            p.get("sphere_radius"),
+            p.get("depth"),
+            p.get("youngs_modulus"),
+            p.get("poisson_ratio"),
+        );
+        if depth > 0.05 * radius {
+            return Err(UsageError(format!(
+                "sphere-indentation: depth {depth} m is past 0.05 sphere_radius ({} m): Hertz is a small-strain theory",
+                0.05 * radius
+            )));
+        }
+        let a = hertz_contact_radius(radius, depth);
+        let w = p.get("size_ratio") * a;
+        let n = block_cells(level);
+        let mesh = sphere_block_mesh(a, w, n);
+        let tol = 1e-9 * w;
+        let mut body = TissueBody::new(mesh.clone(), material(p, nu));
+        body.fixed_nodes = mesh::nodes_on_plane(&mesh, 2, -w, tol);
+        let fixed: HashSet<usize> = body.fixed_nodes.iter().copied().collect();
+        body.partial_fixed = mesh::nodes_where(&mesh, |x| x.x.abs() <= tol || x.y.abs() <= tol)
+            .into_iter()
+            .filter(|i| !fixed.contains(i))
+            .map(|i| {
+                let x = mesh.nodes[i];
+                (i, [x.x.abs() <= tol, x.y.abs() <= tol, false])
+            })
+            .collect();
+        body.indenter = Some(surgbench_core::scene::SphereIndenter {
+            centre: Vec3::new(0.0, 0.0, radius),
+            radius,
+            travel: Vec3::new(0.0, 0.0, -depth),
+        });
+        let top = mesh::nodes_on_plane(&mesh, 2, 0.0, tol);
+        let mut line: Vec<usize> = top.iter().copied().filter(|&i| mesh.nodes[i].y.abs() <= tol).collect();
+        line.sort_by(|&i, &j| mesh.nodes[i].x.total_cmp(&mesh.nodes[j].x));
+        let force_ref = hertz_force(radius, depth, e, nu);
+        let paraboloid_bias = sphere_force_exact(radius, depth, e, nu).0 / force_ref - 1.0;
+        Ok(Box::new(SphereRun {
+            scene: static_scene(self.id(), body, p)?,
+            mesh,
+            radius,
+            depth,
+            force_ref,
+            contact_radius: a,
+            paraboloid_bias,
+            line,
+            top,
+            half_width: w,
+            track: Mutex::new(CurveTrack::default()),
+        }))
+    }
+}
+
+/// Time step of the sphere-indentation sweep (s): 8 quasi-static load
+/// increments over the default 0.25 s ramp (the load factor is sampled at
+/// the steps; the force curve is scored at each).
+pub const SPHERE_DT: f64 = 1.0 / 32.0;

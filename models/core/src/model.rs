@@ -54,6 +54,9 @@ pub enum Capability {
     PressureLoad,
     /// Nodes held along some axes only (rollers, symmetry, plane strain).
     RollerConstraint,
+    /// Frictionless unilateral contact of a tissue with a rigid sphere
+    /// (`TissueBody::indenter`).
+    TissueContact,
     /// Rod-tissue coupling.
     NeedleTissue,
     /// Contact with a vessel wall (SDF).
@@ -82,6 +85,7 @@ impl Capability {
             Capability::Tissue => "3D deformable tissue",
             Capability::PressureLoad => "pressure loads on tissue faces",
             Capability::RollerConstraint => "nodes held along some axes only (rollers, symmetry planes)",
+            Capability::TissueContact => "frictionless contact of tissue with a rigid sphere (indenter)",
             Capability::NeedleTissue => "needle-tissue coupling",
             Capability::VesselContact => "contact with a vessel wall",
             Capability::Friction => "Coulomb friction",
@@ -104,6 +108,7 @@ impl Capability {
             Capability::Tissue => "tissue",
             Capability::PressureLoad => "pressure-load",
             Capability::RollerConstraint => "roller-constraint",
+            Capability::TissueContact => "tissue-contact",
             Capability::NeedleTissue => "needle-tissue",
             Capability::VesselContact => "vessel-contact",
             Capability::Friction => "friction",

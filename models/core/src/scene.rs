@@ -297,6 +297,49 @@ pub struct TissueBody {
     /// Scaled by the control timeline's `insertion` (0..1) like the driven
     /// displacements.
     pub pressure_faces: Vec<([usize; 3], f64)>,
+    /// A rigid sphere pressed into the body (catheter tip, indenter), if
+    /// any: frictionless unilateral contact with the body's boundary nodes.
+    /// Needs [`Capability::TissueContact`].
+    pub indenter: Option<SphereIndenter>,
+}
+
+/// A rigid sphere in frictionless, unilateral contact with a tissue body:
+/// no boundary node of the body may enter it, and it pulls on nothing.
+///
+/// Its centre moves along a straight line: at the control timeline's load
+/// factor `s` (`insertion`, 0..1, the factor that scales
+/// [`TissueBody::driven_nodes`] and [`TissueBody::pressure_faces`]) the
+/// centre is `centre + s travel`. The force the body exerts on the sphere is
+/// reported as `Observation::hand_force`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SphereIndenter {
+    /// Centre at `s = 0` (m).
+    pub centre: Vec3,
+    /// Radius (m), > 0.
+    pub radius: f64,
+    /// Displacement of the centre at `s = 1` (m).
+    pub travel: Vec3,
+}
+
+impl SphereIndenter {
+    /// Centre (m) at load factor `s`: `centre + s travel`.
+    pub fn centre_at(&self, s: f64) -> Vec3 {
+        self.centre + self.travel * s
+    }
+
+    /// Check that every value is finite and the radius positive.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.radius > 0.0 && self.radius.is_finite()) {
+            return Err(format!("indenter radius must be > 0 m and finite, got {}", self.radius));
+        }
+        if !self.centre.iter().chain(self.travel.iter()).all(|v| v.is_finite()) {
+            return Err(format!(
+                "indenter centre {:?} and travel {:?} must be finite",
+                self.centre, self.travel
+            ));
+        }
+        Ok(())
+    }
 }
 
 impl TissueBody {
@@ -309,6 +352,7 @@ impl TissueBody {
             driven_nodes: Vec::new(),
             partial_fixed: Vec::new(),
             pressure_faces: Vec::new(),
+            indenter: None,
         }
     }
 }
@@ -599,6 +643,9 @@ impl Scene {
                     if !t.partial_fixed.is_empty() {
                         c.push(Capability::RollerConstraint);
                     }
+                    if t.indenter.is_some() {
+                        c.push(Capability::TissueContact);
+                    }
                 }
             }
         }
@@ -649,6 +696,9 @@ impl Scene {
                     if t.pressure_faces.iter().any(|f| !f.1.is_finite()) {
                         return Err("tissue pressure must be finite".into());
                     }
+                    if let Some(ind) = &t.indenter {
+                        ind.validate()?;
+                    }
                     let m = &t.material;
                     let ok =
                         m.youngs_modulus > 0.0 && m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5 && m.density > 0.0;
@@ -690,6 +740,10 @@ impl Scene {
                     }
                     for (_, d) in &mut t.driven_nodes {
                         *d = rot * *d;
+                    }
+                    if let Some(ind) = &mut t.indenter {
+                        ind.centre = iso.transform_point(&ind.centre.into()).coords;
+                        ind.travel = rot * ind.travel;
                     }
                     // Axis-aligned partial constraints: a rotation that maps
                     // axes to axes permutes them; any other rotation cannot

@@ -35,6 +35,7 @@
 
 use crate::FemError;
 use crate::assembly::{LinearSolver, Ordering, System};
+use crate::contact::{DEFAULT_KAPPA, SphereContact};
 use crate::core::Solid;
 use crate::element::Jacobian;
 use crate::material::Law;
@@ -104,6 +105,9 @@ pub struct DynParams {
     pub tol: f64,
     /// Assembly threads.
     pub threads: usize,
+    /// Penalty factor `kappa` of the sphere contact (`k_i = kappa E*
+    /// sqrt(A_i)`, see [`crate::contact`]; default [`DEFAULT_KAPPA`]).
+    pub contact_stiffness: f64,
 }
 
 impl Default for DynParams {
@@ -120,6 +124,7 @@ impl Default for DynParams {
             iterations: 1,
             tol: 1e-9,
             threads: 2,
+            contact_stiffness: DEFAULT_KAPPA,
         }
     }
 }
@@ -152,6 +157,9 @@ pub struct FemModel {
     pub last_updated: usize,
     /// Command (load factor) of the last completed step.
     s_last: f64,
+    /// The rigid sphere (its path) and its penalty contact, centred where
+    /// the last step's command put it.
+    contact: Option<(surgbench_core::scene::SphereIndenter, SphereContact)>,
 }
 
 impl FemModel {
@@ -167,6 +175,7 @@ impl FemModel {
             || !(p.rayleigh_stiffness >= 0.0)
             || !(0.0..1.0).contains(&p.reuse_tol)
             || p.reuse_tol == 0.0
+            || !(p.contact_stiffness > 0.0 && p.contact_stiffness.is_finite())
         {
             return Err(FemError::BadInput(format!("bad dynamic settings {p:?}")));
         }
@@ -191,6 +200,20 @@ impl FemModel {
         let gravity_load = solid.body_loads(&move |_: &Vec3| gravity * rho);
         let sys = System::new(&solid.pat, free);
         let x = solid.rest.clone();
+        let contact = match &body.indenter {
+            None => None,
+            Some(ind) if p.integrator != Integrator::QuasiStatic => {
+                return Err(FemError::BadInput(format!(
+                    "sphere contact (indenter of radius {} m) is implemented in the quasi-static integrator only",
+                    ind.radius
+                )));
+            }
+            Some(ind) => {
+                ind.validate().map_err(FemError::BadInput)?;
+                let c = SphereContact::new(&body.mesh, &body.material, p.contact_stiffness, ind.centre, ind.radius);
+                Some((*ind, c))
+            }
+        };
         Ok(Self {
             solid,
             sys,
@@ -211,6 +234,7 @@ impl FemModel {
             excess_solves: 0,
             last_updated: 0,
             s_last: 0.0,
+            contact,
         })
     }
 
@@ -300,7 +324,11 @@ impl FemModel {
                 } else {
                     Some(&follower)
                 };
-                match equilibrate(&mut self.solid, &mut self.sys, &mut x, &load, fol, &sp, 1) {
+                if let Some((ind, c)) = &mut self.contact {
+                    c.centre = ind.centre_at(hi);
+                }
+                let con = self.contact.as_ref().map(|c| &c.1);
+                match equilibrate(&mut self.solid, &mut self.sys, &mut x, &load, fol, con, &sp, 1) {
                     Ok(nt) if hi == s => {
                         its += nt.iterations;
                         break Ok(nt);
@@ -328,11 +356,22 @@ impl FemModel {
                 t: t_end,
                 reason: e.to_string(),
             })?;
-            self.hand_force = self
+            // Contact forces are in the residual `r`, so a driven node the
+            // sphere touches counts once: in the contact reaction.
+            let mut r = nt.r.clone();
+            if let Some((_, c)) = &self.contact {
+                let mut fc = vec![0.0; r.len()];
+                c.add_forces(&self.x, &mut fc);
+                r.iter_mut().zip(&fc).for_each(|(a, b)| *a -= b);
+                self.hand_force = c.reaction(&self.x);
+            } else {
+                self.hand_force = Vec3::zeros();
+            }
+            self.hand_force += self
                 .driven
                 .iter()
-                .map(|&i| Vec3::new(nt.r[3 * i], nt.r[3 * i + 1], nt.r[3 * i + 2]))
-                .sum();
+                .map(|&i| Vec3::new(r[3 * i], r[3 * i + 1], r[3 * i + 2]))
+                .sum::<Vec3>();
             self.inverted = nt.inverted;
             self.v.iter_mut().for_each(|v| *v = Vec3::zeros());
             self.a.iter_mut().for_each(|a| *a = Vec3::zeros());
@@ -569,6 +608,7 @@ impl FemModel {
                 .map(|i| self.solid.mass[i] * self.v[i].norm_squared())
                 .sum::<f64>();
         let (elastic, _) = self.solid.energy_forces(&self.x);
+        let elastic = elastic + self.contact.as_ref().map_or(0.0, |c| c.1.energy(&self.x));
         let external = -(0..self.x.len())
             .map(|i| self.gravity_load[i].dot(&(self.x[i] - self.solid.rest[i])))
             .sum::<f64>();
@@ -624,8 +664,9 @@ impl EnergyProbe for FemModel {
             }
         }
     }
-    /// Elastic energy plus the potential of gravity (J). Pressure faces are
-    /// follower (non-conservative) loads and are in neither this nor
+    /// Elastic energy, the sphere contact's penalty energy (sphere where the
+    /// last step left it) and the potential of gravity (J). Pressure faces
+    /// are follower (non-conservative) loads and are in neither this nor
     /// [`EnergyProbe::forces`].
     fn potential(&self) -> f64 {
         let e = self.energies();
@@ -633,10 +674,15 @@ impl EnergyProbe for FemModel {
     }
     fn forces(&self) -> Vec<f64> {
         let (_, f) = self.solid.energy_forces(&self.x);
-        f.iter()
+        let mut out: Vec<f64> = f
+            .iter()
             .zip(&self.gravity_load)
             .flat_map(|(a, g)| [a.x + g.x, a.y + g.y, a.z + g.z])
-            .collect()
+            .collect();
+        if let Some((_, c)) = &self.contact {
+            c.add_forces(&self.x, &mut out);
+        }
+        out
     }
     fn free(&self) -> Vec<usize> {
         (0..self.sys.free.len()).filter(|&d| self.sys.free[d]).collect()
@@ -690,6 +736,10 @@ const KEYS: &[FidelityKey] = &[
     FidelityKey {
         name: "threads",
         doc: "assembly threads (default 2); results are identical for any count",
+    },
+    FidelityKey {
+        name: "contact_stiffness",
+        doc: "sphere contact penalty factor kappa: node stiffness kappa E/(1-nu^2) sqrt(node boundary area) (default 100; penetration ~ contact strain / kappa of the mesh size)",
     },
 ];
 
@@ -760,7 +810,21 @@ impl FemFactory {
                 format!("must be an integer in 1..=64, got {threads}"),
             ));
         }
+        let contact_stiffness = full.extra("contact_stiffness", DEFAULT_KAPPA);
+        if !(contact_stiffness > 0.0 && contact_stiffness.is_finite()) {
+            return Err(BuildError::bad(
+                "contact_stiffness",
+                format!("must be > 0 and finite, got {contact_stiffness}"),
+            ));
+        }
+        if integrator != Integrator::QuasiStatic && scene.tissues().any(|t| t.indenter.is_some()) {
+            return Err(BuildError::bad(
+                "integrator",
+                "sphere contact (an indenter) is implemented in the quasi-static integrator (2) only",
+            ));
+        }
         let p = DynParams {
+            contact_stiffness,
             law,
             integrator,
             solver,
@@ -793,6 +857,7 @@ impl ModelFactory for FemFactory {
             Capability::HapticForce,
             Capability::PressureLoad,
             Capability::RollerConstraint,
+            Capability::TissueContact,
         ]
     }
     fn fidelity_keys(&self) -> &'static [FidelityKey] {

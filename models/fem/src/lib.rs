@@ -17,11 +17,14 @@
 //! Entry points:
 //! * [`solve_static`]: quasi-static equilibrium for verification scenes;
 //! * [`FemFactory`]: the `fem` model for the harness ([`surgbench_core::ModelFactory`]);
+//! * [`SphereContact`]: frictionless penalty contact with a rigid sphere
+//!   (`TissueBody::indenter`), in the quasi-static integrator;
 //! * [`error_norms`]: L2 and H1-seminorm errors against a smooth field
 //!   (manufactured solutions).
 
 pub mod assembly;
 pub mod bench_support;
+pub mod contact;
 pub mod core;
 pub mod dynamics;
 pub mod element;
@@ -29,6 +32,7 @@ pub mod material;
 pub mod statics;
 
 pub use assembly::{LinearSolver, Ordering};
+pub use contact::SphereContact;
 pub use dynamics::{DynParams, FemFactory, FemModel, Integrator, REUSE_TOL};
 pub use element::Jacobian;
 pub use material::{Law, Material};

@@ -7,6 +7,7 @@
 
 use crate::FemError;
 use crate::assembly::{LinearSolver, System};
+use crate::contact::SphereContact;
 use crate::core::Solid;
 use crate::element::Jacobian;
 use crate::material::Law;
@@ -218,7 +219,7 @@ pub fn solve_static(
             }
         }
         let load: Vec<f64> = fext.iter().flat_map(|f| [f.x * s, f.y * s, f.z * s]).collect();
-        last = equilibrate(&mut solid, &mut sys, &mut x, &load, None, params, step)?;
+        last = equilibrate(&mut solid, &mut sys, &mut x, &load, None, None, params, step)?;
         fallbacks += last.fallbacks;
         iters.push(last.iterations);
     }
@@ -255,17 +256,23 @@ pub(crate) struct Newton {
 /// Configuration-dependent (follower) load per DOF (N) at positions `x`.
 pub(crate) type Follower<'a> = &'a dyn Fn(&[Vec3]) -> Vec<f64>;
 
-/// Full Newton for `f_el(x) + load + follower(x) = 0` on the free DOFs of
-/// `sys`; the constrained DOFs of `x` are already at their targets. The
-/// follower load's derivative is left out of the Jacobian (it keeps the
+/// Full Newton for `f_el(x) + load + follower(x) + f_c(x) = 0` on the free
+/// DOFs of `sys`; the constrained DOFs of `x` are already at their targets.
+/// The follower load's derivative is left out of the Jacobian (it keeps the
 /// system symmetric; Newton then converges linearly, at a rate set by
-/// pressure over stiffness).
+/// pressure over stiffness). The sphere contact's forces `f_c` and exact
+/// Hessian ([`SphereContact`]) enter the residual, the Jacobian's diagonal
+/// blocks and the line search's energy; with a contact the line search runs
+/// for every law (the penalty's active set changes between iterations, and
+/// the energy keeps Newton from cycling between two sets).
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn equilibrate(
     solid: &mut Solid,
     sys: &mut System,
     x: &mut Vec<Vec3>,
     dead_load: &[f64],
     follower: Option<Follower>,
+    contact: Option<&SphereContact>,
     params: &StaticParams,
     step: usize,
 ) -> Result<Newton, FemError> {
@@ -303,7 +310,7 @@ pub(crate) fn equilibrate(
         let load = total(x);
         let load = &load[..];
         let st = solid.evaluate(x, Some(jac), 0.0);
-        out.energy = st.energy;
+        out.energy = st.energy + contact.map_or(0.0, |c| c.energy(x));
         out.inverted = st.inverted;
         if law == Law::NeoHookean && st.inverted > 0 {
             return Err(FemError::Inverted {
@@ -316,6 +323,9 @@ pub(crate) fn equilibrate(
             for a in 0..3 {
                 r[3 * i + a] = solid.forces[i][a] + load[3 * i + a];
             }
+        }
+        if let Some(c) = contact {
+            c.add_forces(x, r);
         }
         let rn = fnorm(r);
         if it == 0 {
@@ -348,7 +358,9 @@ pub(crate) fn equilibrate(
         }
         prev_rn = rn;
         it += 1;
-        sys.set_values(&solid.pat, &solid.kmat, 1.0, &zero_mass, 0.0);
+        // The elastic Jacobian, plus the contact blocks when a node touches.
+        let mut kc = contact.and_then(|c| c.add_to(&solid.kmat, &solid.pat.diag, x, false));
+        sys.set_values(&solid.pat, kc.as_deref().unwrap_or(&solid.kmat), 1.0, &zero_mass, 0.0);
         let mut dx = r.clone();
         match params.solver {
             LinearSolver::Cholesky(ord) => {
@@ -369,7 +381,8 @@ pub(crate) fn equilibrate(
                     // tests/issue_newton_exact_after_fallback.rs).
                     solid.evaluate(x, Some(Jacobian::Projected), 0.0);
                     out.fallbacks += 1;
-                    sys.set_values(&solid.pat, &solid.kmat, 1.0, &zero_mass, 0.0);
+                    kc = contact.and_then(|c| c.add_to(&solid.kmat, &solid.pat.diag, x, true));
+                    sys.set_values(&solid.pat, kc.as_deref().unwrap_or(&solid.kmat), 1.0, &zero_mass, 0.0);
                     sys.factorize(&solid.pat, ord).map_err(FemError::LinearSolver)?;
                 }
                 sys.solve_cholesky(&mut dx);
@@ -377,7 +390,7 @@ pub(crate) fn equilibrate(
             LinearSolver::Cg { tol, max_iter } => {
                 let mut sol = vec![0.0; 3 * n];
                 let pat = &solid.pat;
-                let kmat = &solid.kmat;
+                let kmat = kc.as_deref().unwrap_or(&solid.kmat);
                 let rr = &*r;
                 solid.install(|| sys.solve_cg(pat, kmat, 1.0, &zero_mass, 0.0, rr, &mut sol, tol, max_iter));
                 dx = sol;
@@ -386,12 +399,12 @@ pub(crate) fn equilibrate(
         // Backtracking on Pi(x) = E(x) - load . (x - X); the slope along
         // dx is -r . dx < 0 for a positive definite Jacobian.
         let mut alpha = 1.0;
-        if law != Law::Linear {
+        if law != Law::Linear || contact.is_some() {
             let pi0 = out.energy - dot_disp(load, x, &rest);
             let slope = -r.iter().zip(&dx).map(|(a, b)| a * b).sum::<f64>();
             for _ in 0..20 {
                 let xt = add_scaled(x, &dx, alpha);
-                let e = solid.evaluate(&xt, None, 0.0).energy;
+                let e = solid.evaluate(&xt, None, 0.0).energy + contact.map_or(0.0, |c| c.energy(&xt));
                 let pi = e - dot_disp(load, &xt, &rest);
                 if pi.is_finite() && pi <= pi0 + 1e-4 * alpha * slope + 1e-12 * pi0.abs() {
                     break;

@@ -19,6 +19,7 @@ fn block_body(n: usize, squash: f64) -> TissueBody {
             .collect(),
         partial_fixed: vec![],
         pressure_faces: vec![],
+        indenter: None,
         mesh: m,
         material: tissue(0.3),
     }
@@ -196,6 +197,7 @@ fn lazy_jacobian_trades_updates_for_accuracy() {
             .collect(),
         partial_fixed: vec![],
         pressure_faces: vec![],
+        indenter: None,
         mesh: m,
         material: tissue(0.3),
     };

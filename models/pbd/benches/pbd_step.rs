@@ -85,6 +85,7 @@ fn tissue_model(hash_box: f64, threads: usize) -> Box<dyn Model> {
         driven_nodes,
         partial_fixed: vec![],
         pressure_faces: vec![],
+        indenter: None,
     }));
     let mut f = Fidelity {
         dt: Some(1e-3),

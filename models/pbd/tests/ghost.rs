@@ -40,6 +40,7 @@ fn vessel_model() -> PbdTissue {
         driven_nodes: vec![],
         partial_fixed: vec![],
         pressure_faces: vec![],
+        indenter: None,
     }));
     let mut f = Fidelity {
         dt: Some(1e-3),

@@ -51,6 +51,7 @@ fn block_scene(
         driven_nodes,
         partial_fixed: vec![],
         pressure_faces: vec![],
+        indenter: None,
     }));
     scene
 }
