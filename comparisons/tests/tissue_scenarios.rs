@@ -66,6 +66,14 @@ fn every_tissue_scenario_instantiates_validates_and_needs_what_it_expects() {
         ("volume-preservation", vec![Capability::Tissue]),
         ("truth-cube", vec![Capability::Tissue]),
         ("wall-indentation", vec![Capability::Tissue]),
+        (
+            "sphere-indentation",
+            vec![
+                Capability::Tissue,
+                Capability::RollerConstraint,
+                Capability::TissueContact,
+            ],
+        ),
     ]
     .into();
     let all = tissue::all();
@@ -77,7 +85,8 @@ fn every_tissue_scenario_instantiates_validates_and_needs_what_it_expects() {
             "lame-tube",
             "volume-preservation",
             "truth-cube",
-            "wall-indentation"
+            "wall-indentation",
+            "sphere-indentation"
         ]
     );
     for sc in all {
