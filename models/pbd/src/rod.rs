@@ -47,10 +47,12 @@ use std::sync::Arc;
 
 use nalgebra::{Matrix3, Quaternion, UnitQuaternion};
 use surgbench_core::band::BandMatrix;
+use surgbench_core::motion::carried;
 use surgbench_core::scene::FlowField;
 use surgbench_core::{
-    BuildError, Capability, ContactObs, DeviceCommand, EnergyObs, Family, Fidelity, FidelityKey, Iso3, LoadRamp, Mat3,
-    Model, ModelFactory, Observation, RodBody, RodObs, Scene, Sdf, SimError, StepStats, Unsupported, Vec3,
+    BuildError, Capability, ContactObs, DeviceCommand, EnergyObs, Environment, Family, Fidelity, FidelityKey, Iso3,
+    LoadRamp, Mat3, Model, ModelFactory, Observation, RodBody, RodObs, Scene, Sdf, SimError, StepStats, Unsupported,
+    Vec3,
 };
 
 type Quat = Quaternion<f64>;
@@ -120,6 +122,7 @@ const ROD_CAPS: &[Capability] = &[
     Capability::VesselContact,
     Capability::Friction,
     Capability::Flow,
+    Capability::MovingVessel,
     Capability::HapticForce,
 ];
 
@@ -282,6 +285,9 @@ struct Contact {
     x_ref: Vec3,
     /// Accumulated correction this substep (m).
     dx: Vec3,
+    /// How far the wall under the particle moves this substep (m; zero for
+    /// a still vessel): friction acts on the slip relative to it.
+    wall_dx: Vec3,
 }
 
 impl Contact {
@@ -351,6 +357,10 @@ pub struct PbdRod {
     load_scale: f64,
     vessel: Option<Arc<dyn Sdf>>,
     flow: Option<Arc<dyn FlowField>>,
+    /// A moving vessel's environment: `vessel` and `flow` are re-frozen at
+    /// the end of every substep, `wall_t` is that substep's `(t0, t1)`.
+    moving: Option<Environment>,
+    wall_t: (f64, f64),
     mu_s: f64,
     mu_k: f64,
     margin: f64,
@@ -654,8 +664,14 @@ impl PbdRod {
             tip_torque: rod.tip_torque,
             tip_ramp: rod.tip_load_ramp.clone(),
             load_scale: rod.tip_load_scale(0.0),
-            vessel: scene.environment.vessel.clone(),
-            flow: scene.environment.flow.clone(),
+            vessel: scene.environment.vessel_at(0.0),
+            flow: scene.environment.flow_at(0.0),
+            moving: scene
+                .environment
+                .vessel_motion
+                .as_ref()
+                .map(|_| scene.environment.clone()),
+            wall_t: (0.0, 0.0),
             mu_s: c.friction_static,
             mu_k: c.friction_dynamic,
             margin: c.margin,
@@ -778,13 +794,19 @@ impl PbdRod {
             let r = self.radius_node[i];
             let band = 2.0 * (xi - self.x_prev[i]).norm() + r;
             let (xc, phic) = self.sdf_cache[i];
-            if phic + SDF_LIPSCHITZ_BOUND * (xi - xc).norm() + self.margin <= -band {
+            // A moving wall may come to the particle: no early-out (the
+            // cached value is of another time's lumen).
+            if self.moving.is_none() && phic + SDF_LIPSCHITZ_BOUND * (xi - xc).norm() + self.margin <= -band {
                 continue;
             }
             let (phi, g) = sdf.distance_gradient(&xi);
             self.sdf_cache[i] = (xi, phi);
             let d0 = phi + self.margin;
             if d0 > -band {
+                let wall_dx = match self.moving.as_ref().and_then(|e| e.vessel_motion.as_ref()) {
+                    Some(m) => carried(m.as_ref(), &self.x_prev[i], self.wall_t.0, self.wall_t.1) - self.x_prev[i],
+                    None => Vec3::zeros(),
+                };
                 let mut c = Contact {
                     i,
                     live: false,
@@ -792,6 +814,7 @@ impl PbdRod {
                     d0,
                     x_ref: xi,
                     dx: Vec3::zeros(),
+                    wall_dx,
                 };
                 c.linearise(d0, &g);
                 self.contacts.push(c);
@@ -1078,7 +1101,7 @@ impl PbdRod {
                 continue;
             }
             let mut dx = -c.normal * d;
-            let moved = self.x[i] + dx - self.x_prev[i];
+            let moved = self.x[i] + dx - self.x_prev[i] - c.wall_dx;
             let dt_ = moved - c.normal * c.normal.dot(&moved);
             let s = dt_.norm();
             if s > 0.0 {
@@ -1236,6 +1259,12 @@ impl Model for PbdRod {
             let ins = a.insertion + f * (cmd.insertion - a.insertion);
             let rot = a.rotation + f * (cmd.rotation - a.rotation);
             let pose = self.clamp_pose(ins, rot, cmd.base_pose);
+            if let Some(env) = &self.moving {
+                let (t0, t1) = (self.time + s as f64 * h, self.time + (s + 1) as f64 * h);
+                self.vessel = env.vessel_at(t1);
+                self.flow = env.flow_at(t1);
+                self.wall_t = (t0, t1);
+            }
             self.substep(h, pose).map_err(|reason| SimError::SolverFailed {
                 t: self.time + (s + 1) as f64 * h,
                 reason,
