@@ -28,7 +28,7 @@ use std::f64::consts::PI;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use surgbench_core::haptic::Session;
-use surgbench_core::motion::CardiacMotion;
+use surgbench_core::motion::{CardiacMotion, VesselMotion};
 use surgbench_core::sdf::{CenterlineBuilder, Sdf, StraightTube, SweptTube};
 use surgbench_core::vessel::{self, PoiseuilleFlow, Vessel};
 use surgbench_core::{
@@ -1535,7 +1535,8 @@ impl Scenario for StickSlipThreshold {
 /// multi-point contact along the whole wire.
 pub struct CoronaryTortuous;
 
-const CORONARY_PARAMS: &[ParamSpec] = &[
+/// Parameters every coronary scene shares (wire, friction, feed).
+const CORONARY_COMMON: [ParamSpec; 10] = [
     P_WIRE_RADIUS,
     P_BODY_E,
     P_TIP_E,
@@ -1570,14 +1571,32 @@ const CORONARY_PARAMS: &[ParamSpec] = &[
         Range::Positive,
         "free wire length at t = 0",
     ),
-    p(
+];
+
+/// Two parameter lists joined at compile time (scenes that extend another's).
+const fn joined<const A: usize, const B: usize, const N: usize>(
+    a: [ParamSpec; A],
+    b: [ParamSpec; B],
+) -> [ParamSpec; N] {
+    let mut out = [a[0]; N];
+    let mut i = 0;
+    while i < N {
+        out[i] = if i < A { a[i] } else { b[i - A] };
+        i += 1;
+    }
+    out
+}
+
+const CORONARY_PARAMS: &[ParamSpec] = &joined::<10, 1, 11>(
+    CORONARY_COMMON,
+    [p(
         "duration",
         60.0,
         "s",
         Range::Positive,
         "simulated time (6 s cycles: push 2 s, pull 1 s, turn, hold, turn back)",
-    ),
-];
+    )],
+);
 
 struct CoronaryRun {
     scene: Scene,
@@ -1623,14 +1642,20 @@ impl ScenarioRun for CoronaryRun {
     fn scene(&self) -> &Scene {
         &self.scene
     }
+    /// Penetration is measured from the geometry against the lumen at the
+    /// observation's time (the moved wall when the vessel beats); progress
+    /// is the tip's rest point projected on the centreline.
     fn score(&self, obs: &Observation) -> BTreeMap<String, f64> {
         let mut m = BTreeMap::new();
         let Some(tip) = tip(obs) else { return m };
-        let t = track(&self.track, obs, |t| {
-            common(t, self.vessel.as_ref(), obs, self.wire_radius)
-        });
+        let Some(lumen) = self.scene.environment.vessel_at(obs.time) else {
+            return m;
+        };
+        let t = track(&self.track, obs, |t| common(t, lumen.as_ref(), obs, self.wire_radius));
         common_metrics(&mut m, &t, obs);
-        m.insert("tip_progress_m".into(), self.vessel.trunk.project(&tip).s);
+        let motion = self.scene.environment.vessel_motion.as_ref();
+        let rest_tip = motion.map_or(tip, |mo| mo.rest_point(&tip, obs.time));
+        m.insert("tip_progress_m".into(), self.vessel.trunk.project(&rest_tip).s);
         m
     }
     fn energy_scale(&self) -> f64 {
@@ -1667,44 +1692,56 @@ impl Scenario for CoronaryTortuous {
         sweep_of("segments", &[30.0, 60.0, 120.0])
     }
     fn instantiate_at(&self, p: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        let wire = Wire::from(p);
-        check_lumen(wire.radius, vessel::CORONARY_RADIUS, "coronary")?;
-        let l0 = p.get("initial_length");
-        if l0 + ENTRY_S > vessel::CORONARY_ENTRY {
-            return Err(UsageError(format!(
-                "initial_length {l0} m does not fit the {} m straight entry",
-                vessel::CORONARY_ENTRY
-            )));
-        }
-        let cor = Arc::new(vessel::coronary_tortuous());
-        let duration = p.get("duration");
-        let v = p.get("push_speed");
-        // Net advance v x 1 s per 6 s cycle, 2 v at the end of a push: the
-        // deepest insertion is v (cycles + 1). Keep the tip short of the end.
-        let advance = v * ((duration / 6.0).ceil() + 1.0);
-        if l0 + ENTRY_S + advance > cor.trunk.length() - 5e-3 {
-            return Err(UsageError(format!(
-                "push_speed {v} m/s for {duration} s advances {advance:.3} m: past the end of the {:.3} m coronary",
-                cor.trunk.length()
-            )));
-        }
-        clamp_stays_in_straight(ENTRY_S + advance, vessel::CORONARY_ENTRY, "coronary entry")?;
-        let mut scene = Scene::empty(self.id());
-        scene.duration = duration;
-        scene.bodies.push(wire.rod(l0, cor.trunk.frame_at(ENTRY_S))?.into());
-        scene.environment.vessel = Some(cor.clone());
-        scene.environment.contact = contact(p, wire.radius)?;
-        scene.control = push_pull_rotate(v, duration);
-        scene.validate().map_err(UsageError)?;
-        Ok(Box::new(CoronaryRun {
-            scene,
-            // The whole wire bent to the tightest 5 mm bend.
-            energy: wire.body_ei() * (l0 + advance) / 25e-6,
-            vessel: cor,
-            wire_radius: wire.radius,
-            track: Mutex::new(Track::default()),
-        }))
+        Ok(Box::new(coronary_run(self.id(), p, |_| Ok(None))?))
     }
+}
+
+/// The coronary scene of `coronary-tortuous` and `coronary-beating`: the
+/// wire at the entry, push/pull/rotate cycles, and the vessel's motion from
+/// `motion`, which is told the deepest clamp arclength (m) the feed reaches.
+fn coronary_run(
+    id: &str,
+    p: &Params,
+    motion: impl FnOnce(f64) -> Result<Option<Arc<dyn VesselMotion>>, UsageError>,
+) -> Result<CoronaryRun, UsageError> {
+    let wire = Wire::from(p);
+    check_lumen(wire.radius, vessel::CORONARY_RADIUS, "coronary")?;
+    let l0 = p.get("initial_length");
+    if l0 + ENTRY_S > vessel::CORONARY_ENTRY {
+        return Err(UsageError(format!(
+            "initial_length {l0} m does not fit the {} m straight entry",
+            vessel::CORONARY_ENTRY
+        )));
+    }
+    let cor = Arc::new(vessel::coronary_tortuous());
+    let duration = p.get("duration");
+    let v = p.get("push_speed");
+    // Net advance v x 1 s per 6 s cycle, 2 v at the end of a push: the
+    // deepest insertion is v (cycles + 1). Keep the tip short of the end.
+    let advance = v * ((duration / 6.0).ceil() + 1.0);
+    if l0 + ENTRY_S + advance > cor.trunk.length() - 5e-3 {
+        return Err(UsageError(format!(
+            "push_speed {v} m/s for {duration} s advances {advance:.3} m: past the end of the {:.3} m coronary",
+            cor.trunk.length()
+        )));
+    }
+    clamp_stays_in_straight(ENTRY_S + advance, vessel::CORONARY_ENTRY, "coronary entry")?;
+    let mut scene = Scene::empty(id);
+    scene.duration = duration;
+    scene.bodies.push(wire.rod(l0, cor.trunk.frame_at(ENTRY_S))?.into());
+    scene.environment.vessel = Some(cor.clone());
+    scene.environment.vessel_motion = motion(ENTRY_S + advance)?;
+    scene.environment.contact = contact(p, wire.radius)?;
+    scene.control = push_pull_rotate(v, duration);
+    scene.validate().map_err(UsageError)?;
+    Ok(CoronaryRun {
+        scene,
+        // The whole wire bent to the tightest 5 mm bend.
+        energy: wire.body_ei() * (l0 + advance) / 25e-6,
+        vessel: cor,
+        wire_radius: wire.radius,
+        track: Mutex::new(Track::default()),
+    })
 }
 
 // ---------------------------------------------------------------------------
@@ -1719,118 +1756,46 @@ impl Scenario for CoronaryTortuous {
 /// contact with a moving wall and of friction measured against it.
 pub struct CoronaryBeating;
 
-const BEATING_PARAMS: &[ParamSpec] = &[
-    P_WIRE_RADIUS,
-    P_BODY_E,
-    P_TIP_E,
-    P_TIP_LEN,
-    P_DENSITY,
-    P_POISSON,
-    p(
-        "friction_static",
-        0.05,
-        "1",
-        Range::NonNegative,
-        "static friction (coated wire)",
-    ),
-    p(
-        "friction_dynamic",
-        0.04,
-        "1",
-        Range::NonNegative,
-        "dynamic friction (<= static)",
-    ),
-    p(
-        "push_speed",
-        5e-3,
-        "m/s",
-        Range::Positive,
-        "feed speed of each push and pull",
-    ),
-    p(
-        "initial_length",
-        0.032,
-        "m",
-        Range::Positive,
-        "free wire length at t = 0",
-    ),
-    p(
-        "duration",
-        12.0,
-        "s",
-        Range::Positive,
-        "simulated time (6 s push/pull/rotate cycles as in coronary-tortuous)",
-    ),
-    p(
-        "amplitude",
-        4e-3,
-        "m",
-        Range::NonNegative,
-        "peak transverse swing of the moving vessel (heart motion: several mm, Shechter et al. 2004/2005)",
-    ),
-    p(
-        "heart_rate",
-        1.2,
-        "Hz",
-        Range::Positive,
-        "beats per second (72 per minute)",
-    ),
-    p(
-        "motion_start",
-        0.025,
-        "m",
-        Range::Positive,
-        "arclength along the entry where the swing begins (past the deepest clamp position, 20 mm by default)",
-    ),
-    p(
-        "motion_ramp",
-        0.025,
-        "m",
-        Range::Positive,
-        "length over which the swing grows to full amplitude",
-    ),
-];
-
-struct BeatingRun {
-    scene: Scene,
-    vessel: Arc<Vessel>,
-    wire_radius: f64,
-    energy: f64,
-    track: Mutex<Track>,
-}
-
-impl ScenarioRun for BeatingRun {
-    fn observe_step(&self, obs: &Observation) {
-        let _ = self.score(obs);
-    }
-    fn scene(&self) -> &Scene {
-        &self.scene
-    }
-    /// Penetration is measured against the lumen at the observation's time
-    /// (the moved wall), from the geometry.
-    fn score(&self, obs: &Observation) -> BTreeMap<String, f64> {
-        let mut m = BTreeMap::new();
-        let Some(tip) = tip(obs) else { return m };
-        let Some(lumen) = self.scene.environment.vessel_at(obs.time) else {
-            return m;
-        };
-        let t = track(&self.track, obs, |t| common(t, lumen.as_ref(), obs, self.wire_radius));
-        common_metrics(&mut m, &t, obs);
-        let motion = self.scene.environment.vessel_motion.as_ref();
-        let rest_tip = motion.map_or(tip, |mo| mo.rest_point(&tip, obs.time));
-        m.insert("tip_progress_m".into(), self.vessel.trunk.project(&rest_tip).s);
-        m
-    }
-    fn energy_scale(&self) -> f64 {
-        self.energy
-    }
-    fn length_scale(&self) -> f64 {
-        0.15
-    }
-    fn penetration_limit(&self) -> f64 {
-        0.5 * self.wire_radius
-    }
-}
+const BEATING_PARAMS: &[ParamSpec] = &joined::<10, 5, 15>(
+    CORONARY_COMMON,
+    [
+        p(
+            "duration",
+            12.0,
+            "s",
+            Range::Positive,
+            "simulated time (6 s push/pull/rotate cycles as in coronary-tortuous)",
+        ),
+        p(
+            "amplitude",
+            4e-3,
+            "m",
+            Range::NonNegative,
+            "peak transverse swing of the moving vessel (heart motion: several mm, Shechter et al. 2004/2005)",
+        ),
+        p(
+            "heart_rate",
+            1.2,
+            "Hz",
+            Range::Positive,
+            "beats per second (72 per minute)",
+        ),
+        p(
+            "motion_start",
+            0.025,
+            "m",
+            Range::Positive,
+            "arclength along the entry where the swing begins (past the deepest clamp position, 20 mm by default)",
+        ),
+        p(
+            "motion_ramp",
+            0.025,
+            "m",
+            Range::Positive,
+            "length over which the swing grows to full amplitude",
+        ),
+    ],
+);
 
 impl Scenario for CoronaryBeating {
     fn id(&self) -> &'static str {
@@ -1855,52 +1820,26 @@ impl Scenario for CoronaryBeating {
         sweep_of("segments", &[30.0, 60.0, 120.0])
     }
     fn instantiate_at(&self, p: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        let wire = Wire::from(p);
-        check_lumen(wire.radius, vessel::CORONARY_RADIUS, "coronary")?;
-        let l0 = p.get("initial_length");
-        let duration = p.get("duration");
-        let v = p.get("push_speed");
-        let advance = v * ((duration / 6.0).ceil() + 1.0);
-        clamp_stays_in_straight(ENTRY_S + advance, vessel::CORONARY_ENTRY, "coronary entry")?;
-        let cor = Arc::new(vessel::coronary_tortuous());
-        if l0 + ENTRY_S + advance > cor.trunk.length() - 5e-3 {
-            return Err(UsageError(format!(
-                "push_speed {v} m/s for {duration} s advances {advance:.3} m: past the end of the {:.3} m coronary",
-                cor.trunk.length()
-            )));
-        }
         let (start, ramp) = (p.get("motion_start"), p.get("motion_ramp"));
-        if start <= ENTRY_S + advance {
-            return Err(UsageError(format!(
-                "motion_start {start} m must lie past the deepest clamp position {:.3} m (the guiding catheter does not beat)",
-                ENTRY_S + advance
-            )));
-        }
-        // The entry runs along +x from the origin; the swing is across it.
-        let motion = CardiacMotion::new(
-            Vec3::zeros(),
-            Vec3::x(),
-            Vec3::z(),
-            start,
-            ramp,
-            p.get("amplitude"),
-            p.get("heart_rate"),
-        )
-        .map_err(UsageError)?;
-        let mut scene = Scene::empty(self.id());
-        scene.duration = duration;
-        scene.bodies.push(wire.rod(l0, cor.trunk.frame_at(ENTRY_S))?.into());
-        scene.environment.vessel = Some(cor.clone());
-        scene.environment.vessel_motion = Some(Arc::new(motion));
-        scene.environment.contact = contact(p, wire.radius)?;
-        scene.control = push_pull_rotate(v, duration);
-        scene.validate().map_err(UsageError)?;
-        Ok(Box::new(BeatingRun {
-            scene,
-            energy: wire.body_ei() * (l0 + advance) / 25e-6,
-            vessel: cor,
-            wire_radius: wire.radius,
-            track: Mutex::new(Track::default()),
-        }))
+        let run = coronary_run(self.id(), p, |deepest| {
+            if start <= deepest {
+                return Err(UsageError(format!(
+                    "motion_start {start} m must lie past the deepest clamp position {deepest:.3} m (the guiding catheter does not beat)"
+                )));
+            }
+            // The entry runs along +x from the origin; the swing is across it.
+            let m = CardiacMotion::new(
+                Vec3::zeros(),
+                Vec3::x(),
+                Vec3::z(),
+                start,
+                ramp,
+                p.get("amplitude"),
+                p.get("heart_rate"),
+            )
+            .map_err(UsageError)?;
+            Ok(Some(Arc::new(m)))
+        })?;
+        Ok(Box::new(run))
     }
 }
