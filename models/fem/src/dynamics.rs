@@ -160,6 +160,10 @@ pub struct FemModel {
     /// The rigid sphere (its path) and its penalty contact, centred where
     /// the last step's command put it.
     contact: Option<(surgbench_core::scene::SphereIndenter, SphereContact)>,
+    /// World position (m) of the local coordinates' origin: the rest mesh's
+    /// bounding-box centre. `x`, the rest positions and the sphere are
+    /// stored relative to it.
+    origin: Vec3,
 }
 
 impl FemModel {
@@ -179,7 +183,22 @@ impl FemModel {
         {
             return Err(FemError::BadInput(format!("bad dynamic settings {p:?}")));
         }
-        let solid = Solid::new(&body.mesh, &body.material, p.law, p.threads)?;
+        // Work in coordinates relative to the rest mesh's bounding-box centre:
+        // positions far from the world origin then cost no digits (the
+        // penalty contact's force is k times a gap of ~1e-3 of the depth, and
+        // in world coordinates 0.5 m away its rounding left a Newton floor
+        // of 3e-7 of the force; rigid-motion conformance).
+        let origin = if body.mesh.nodes.is_empty() {
+            Vec3::zeros()
+        } else {
+            let (lo, hi) = surgbench_core::mesh::bounds(&body.mesh);
+            (lo + hi) * 0.5
+        };
+        let local = surgbench_core::TetMesh {
+            nodes: body.mesh.nodes.iter().map(|p| p - origin).collect(),
+            tets: body.mesh.tets.clone(),
+        };
+        let solid = Solid::new(&local, &body.material, p.law, p.threads)?;
         let n = solid.n_nodes();
         let mut cons: Vec<Constraint> = body.fixed_nodes.iter().map(|&i| Constraint::fixed(i)).collect();
         cons.extend(body.partial_fixed.iter().map(|&(i, axes)| Constraint {
@@ -210,8 +229,13 @@ impl FemModel {
             }
             Some(ind) => {
                 ind.validate().map_err(FemError::BadInput)?;
-                let c = SphereContact::new(&body.mesh, &body.material, p.contact_stiffness, ind.centre, ind.radius);
-                Some((*ind, c))
+                let c = SphereContact::new(&local, &body.material, p.contact_stiffness, ind.centre, ind.radius);
+                // The path in the model's local coordinates.
+                let path = surgbench_core::scene::SphereIndenter {
+                    centre: ind.centre - origin,
+                    ..*ind
+                };
+                Some((path, c))
             }
         };
         Ok(Self {
@@ -235,12 +259,13 @@ impl FemModel {
             last_updated: 0,
             s_last: 0.0,
             contact,
+            origin,
         })
     }
 
-    /// Current node positions (m).
-    pub fn positions(&self) -> &[Vec3] {
-        &self.x
+    /// Current node positions (m, world coordinates).
+    pub fn positions(&self) -> Vec<Vec3> {
+        self.x.iter().map(|p| p + self.origin).collect()
     }
 
     /// Non-zeros of the Cholesky factor (after the first factorization).
@@ -632,8 +657,8 @@ impl Model for FemModel {
         Observation {
             time: self.t,
             tissues: vec![TissueObs {
-                rest: self.solid.rest.clone(),
-                nodes: self.x.clone(),
+                rest: self.solid.rest.iter().map(|p| p + self.origin).collect(),
+                nodes: self.positions(),
                 velocities: self.v.clone(),
                 volume_error: self.solid.volume_error(&self.x),
                 inverted: self.inverted,
@@ -655,12 +680,13 @@ impl Model for FemModel {
 
 impl EnergyProbe for FemModel {
     fn coords(&self) -> Vec<f64> {
-        self.x.iter().flat_map(|p| [p.x, p.y, p.z]).collect()
+        self.positions().iter().flat_map(|p| [p.x, p.y, p.z]).collect()
     }
     fn set_coords(&mut self, q: &[f64]) {
+        let o = self.origin;
         for (i, p) in self.x.iter_mut().enumerate() {
             if 3 * i + 2 < q.len() {
-                *p = Vec3::new(q[3 * i], q[3 * i + 1], q[3 * i + 2]);
+                *p = Vec3::new(q[3 * i], q[3 * i + 1], q[3 * i + 2]) - o;
             }
         }
     }
