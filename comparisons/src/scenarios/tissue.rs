@@ -1203,10 +1203,10 @@ pub fn wall_clamped(r: &WallReference, mesh: &TetMesh) -> Vec<usize> {
 /// A catheter tip indenting a vessel-wall segment.
 ///
 /// The catheter tip is a sphere, whose contact footprint grows with
-/// the depth; that needs unilateral contact between a rigid body and the
-/// tissue, which the tissue contract ([`TissueBody`]) does not have yet (a
-/// follow-up). This scene is the footprint-sized stand-in the contract can
-/// express: a rigid flat-ended circular punch of the catheter's radius,
+/// the depth. The contract now has that contact ([`TissueBody::indenter`],
+/// verified against Hertz by `sphere-indentation`), but this wall scene and
+/// its scikit-fem reference still use the stand-in built before it: a rigid
+/// flat-ended circular punch of the catheter's radius,
 /// bonded to the inner wall (every component of the footprint nodes is
 /// prescribed) and pushed radially outward (`+x`) by `depth`.
 ///
@@ -1366,7 +1366,7 @@ impl Scenario for WallIndentation {
         WALL_PARAMS
     }
     fn reference(&self) -> &'static str {
-        "scikit-fem P2, LINEAR elasticity, bonded flat punch (datasets/reference/wall-indentation); the issue's sphere needs unilateral contact the tissue contract lacks"
+        "scikit-fem P2, LINEAR elasticity, bonded flat punch (datasets/reference/wall-indentation); the sphere in unilateral contact is `sphere-indentation` (Hertz), not yet on this wall"
     }
     fn primary_error(&self) -> &'static str {
         "force_error_rel"

@@ -38,7 +38,7 @@ pub use model::{Capability, EnergyProbe, Family, Model, ModelFactory, StepStats}
 pub use observation::{ContactObs, EnergyObs, Observation, RodObs, TissueObs};
 pub use scene::{
     Body, ContactParams, ControlKey, ControlTimeline, DeviceCommand, Environment, LoadRamp, RodBody, RodSection, Scene,
-    Settle, SolidMaterial, TetMesh, TissueBody,
+    Settle, SolidMaterial, SphereIndenter, TetMesh, TissueBody,
 };
 pub use sdf::Sdf;
 
