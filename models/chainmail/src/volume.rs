@@ -106,7 +106,6 @@ pub struct VesselLattice {
     links: LinkParams,
     iterations: usize,
     cells: CellMap,
-    ijk: Vec<[i32; 3]>,
     kind: Vec<Kind>,
     rest: Vec<Vec3>,
     x: Vec<Vec3>,
@@ -126,7 +125,6 @@ pub struct VesselLattice {
     queue: VecDeque<usize>,
     /// `(blood element, sponsor)` in breadth-first order from the wall.
     blood: Vec<(usize, usize)>,
-    wall_count: usize,
     time: f64,
 }
 
@@ -242,8 +240,7 @@ impl VesselLattice {
                 }
             }
         }
-        let wall_count = kind.iter().filter(|&&k| k == Kind::Wall).count();
-        if wall_count == 0 {
+        if !kind.contains(&Kind::Wall) {
             return Err(format!(
                 "vessel_spacing {h} m resolves no wall layer of the lumen: use a finer spacing"
             ));
@@ -257,7 +254,6 @@ impl VesselLattice {
             links: cfg.links,
             iterations: cfg.iterations,
             cells,
-            ijk,
             kind,
             x: rest.clone(),
             x_old: rest.clone(),
@@ -269,22 +265,11 @@ impl VesselLattice {
             moved: vec![false; ne],
             queue: VecDeque::new(),
             blood,
-            wall_count,
             time: 0.0,
         };
         lat.advance(0.0);
         lat.x_old.clone_from(&lat.x);
         Ok(lat)
-    }
-
-    /// Number of elements of each kind `(driven, wall, blood)`.
-    pub fn counts(&self) -> (usize, usize, usize) {
-        let b = self.blood.len();
-        (
-            self.ijk.len() - self.wall_count - self.kind.iter().filter(|&&k| k == Kind::Blood).count(),
-            self.wall_count,
-            b,
-        )
     }
 
     /// Element positions (m) and kinds.
