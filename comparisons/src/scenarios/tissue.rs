@@ -1273,6 +1273,27 @@ struct CurveTrack {
     ref2: f64,
 }
 
+impl CurveTrack {
+    /// Add the force `got` against the reference `want` (N) at time `t`
+    /// (s): once per time; an earlier time starts a new run.
+    fn add(&mut self, t: f64, got: f64, want: f64) {
+        match self.last_t {
+            Some(last) if t < last => *self = CurveTrack::default(),
+            Some(last) if t == last => return,
+            _ => {}
+        }
+        self.last_t = Some(t);
+        self.err2 += (got - want).powi(2);
+        self.ref2 += want * want;
+    }
+
+    /// RMS force error over the curve relative to the RMS reference, if any
+    /// reference force was seen.
+    fn error_rel(&self) -> Option<f64> {
+        (self.ref2 > 0.0).then(|| (self.err2 / self.ref2).sqrt())
+    }
+}
+
 struct WallRun {
     scene: Scene,
     mesh: TetMesh,
@@ -1321,27 +1342,18 @@ impl ScenarioRun for WallRun {
             m.insert("surface_error_rel".into(), (e2 / r2).sqrt());
             m.insert("surface_error_max_rel".into(), emax / self.depth);
         }
-        let c = self.track.lock().unwrap_or_else(|e| e.into_inner());
-        if c.ref2 > 0.0 {
-            m.insert("force_curve_error_rel".into(), (c.err2 / c.ref2).sqrt());
+        if let Some(e) = self.track.lock().unwrap_or_else(|e| e.into_inner()).error_rel() {
+            m.insert("force_curve_error_rel".into(), e);
         }
-        drop(c);
         common_metrics(&mut m, &self.mesh, t);
         m
     }
     fn observe_step(&self, obs: &Observation) {
         let s = self.scene.control.command_at(obs.time).insertion;
-        let mut c = self.track.lock().unwrap_or_else(|e| e.into_inner());
-        match c.last_t {
-            Some(t) if obs.time < t => *c = CurveTrack::default(),
-            Some(t) if obs.time == t => return,
-            _ => {}
-        }
-        c.last_t = Some(obs.time);
         // Linear reference: F(t) = F_ref s(t) at load factor s(t).
         let want = self.force_ref * s;
-        c.err2 += (Self::force(obs) - want).powi(2);
-        c.ref2 += want * want;
+        let mut c = self.track.lock().unwrap_or_else(|e| e.into_inner());
+        c.add(obs.time, Self::force(obs), want);
     }
     fn energy_scale(&self) -> f64 {
         // Twice the linear work F d / 2.
@@ -1357,7 +1369,7 @@ impl Scenario for WallIndentation {
         "wall-indentation"
     }
     fn description(&self) -> &'static str {
-        "vessel-wall sector (r 4-5 mm) indented by a 1 mm catheter-tip punch BONDED to the inner wall (stand-in for a sphere: no tissue contact yet): force, deformed surface"
+        "vessel-wall sector (r 4-5 mm) indented by a 1 mm catheter-tip punch BONDED to the inner wall (stand-in for a sphere; sphere contact is verified in sphere-indentation): force, deformed surface"
     }
     fn family(&self) -> Family {
         Family::Tissue
@@ -1661,27 +1673,18 @@ impl ScenarioRun for SphereRun {
                 0.5 * (x1 - x0) / self.contact_radius,
             );
         }
-        let tr = self.track.lock().unwrap_or_else(|e| e.into_inner());
-        if tr.ref2 > 0.0 {
-            m.insert("force_curve_error_rel".into(), (tr.err2 / tr.ref2).sqrt());
+        if let Some(e) = self.track.lock().unwrap_or_else(|e| e.into_inner()).error_rel() {
+            m.insert("force_curve_error_rel".into(), e);
         }
-        drop(tr);
         common_metrics(&mut m, &self.mesh, t);
         m
     }
     fn observe_step(&self, obs: &Observation) {
         let s = self.scene.control.command_at(obs.time).insertion;
-        let mut c = self.track.lock().unwrap_or_else(|e| e.into_inner());
-        match c.last_t {
-            Some(t) if obs.time < t => *c = CurveTrack::default(),
-            Some(t) if obs.time == t => return,
-            _ => {}
-        }
-        c.last_t = Some(obs.time);
         // Hertz along the ramp: F(s) = F_ref s^(3/2) at depth s delta.
         let want = self.force_ref * s.max(0.0).powf(1.5);
-        c.err2 += (Self::force(obs) - want).powi(2);
-        c.ref2 += want * want;
+        let mut c = self.track.lock().unwrap_or_else(|e| e.into_inner());
+        c.add(obs.time, Self::force(obs), want);
     }
     fn energy_scale(&self) -> f64 {
         // Hertz work (2/5) F delta on the quarter, with a factor 10 of room.
