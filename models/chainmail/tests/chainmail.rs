@@ -287,23 +287,26 @@ fn busy_scene(c_f: f64) -> Scene {
     s
 }
 
+/// `steps` steps of 10 ms of the default chain-mail in `s`, pushing and
+/// turning the wire a little every step; every observation.
+fn push_and_turn(s: &Scene, steps: usize) -> Vec<surgbench_core::Observation> {
+    let mut m = ChainmailFactory.build(s, &Fidelity::default()).unwrap();
+    let mut obs = Vec::new();
+    for k in 0..steps {
+        let cmd = DeviceCommand {
+            insertion: 2e-4 * k as f64,
+            rotation: 0.01 * k as f64,
+            base_pose: None,
+        };
+        m.step(0.01, &cmd).unwrap();
+        obs.push(m.observe());
+    }
+    obs
+}
+
 #[test]
 fn reruns_are_bit_identical() {
-    let run = || {
-        let s = busy_scene(0.3);
-        let mut m = ChainmailFactory.build(&s, &Fidelity::default()).unwrap();
-        let mut obs = Vec::new();
-        for k in 0..400 {
-            let cmd = DeviceCommand {
-                insertion: 2e-4 * k as f64,
-                rotation: 0.01 * k as f64,
-                base_pose: None,
-            };
-            m.step(0.01, &cmd).unwrap();
-            obs.push(m.observe());
-        }
-        obs
-    };
+    let run = || push_and_turn(&busy_scene(0.3), 400);
     let (a, b) = (run(), run());
     assert!(a == b, "reruns differ");
     assert!(
@@ -823,18 +826,7 @@ fn a_still_vessel_motion_changes_nothing() {
             let m = CardiacMotion::new(Vec3::zeros(), Vec3::x(), Vec3::z(), 0.01, 0.02, 0.0, 1.2).unwrap();
             s.environment.vessel_motion = Some(Arc::new(m));
         }
-        let mut m = ChainmailFactory.build(&s, &Fidelity::default()).unwrap();
-        let mut obs = Vec::new();
-        for k in 0..200 {
-            let cmd = DeviceCommand {
-                insertion: 2e-4 * k as f64,
-                rotation: 0.01 * k as f64,
-                base_pose: None,
-            };
-            m.step(0.01, &cmd).unwrap();
-            obs.push(m.observe());
-        }
-        obs
+        push_and_turn(&s, 200)
     };
     let (still, moving) = (run(false), run(true));
     assert!(still == moving, "a zero-amplitude motion changed the answer");
