@@ -15,6 +15,8 @@
 //!   through an MLS map with a linear basis and cubic-spline weight ([`mls`]).
 //! * Follower pressure loads on boundary triangles with their exact load
 //!   stiffness ([`pressure`], Bonet & Wood Sec. 6.5).
+//! * Frictionless contact with a rigid sphere by a node penalty in the
+//!   implicit integrators' Newton objective ([`contact`]).
 //! * Symplectic Euler, backward Euler or quasi-static stepping ([`model`]).
 //!
 //! Units are SI throughout (m, kg, s, N, Pa).
@@ -30,6 +32,7 @@
 //! assert!(MeshlessFactory.build(&scene, &Fidelity::default()).is_ok());
 //! ```
 
+pub mod contact;
 pub mod elastic;
 pub mod grid;
 pub mod kernel;
@@ -38,6 +41,7 @@ pub mod model;
 pub mod pbd;
 pub mod pressure;
 
+pub use contact::SphereContact;
 pub use elastic::{PointElastic, StateCache};
 pub use mls::MlsMap;
 pub use model::{Integrator, MESHLESS_KEYS, MappingError, MeshlessFactory, MeshlessSettings, MeshlessTissue};

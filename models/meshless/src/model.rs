@@ -38,9 +38,20 @@
 //! since a follower load on an open surface has no potential. The energy
 //! probe and `EnergyObs` leave the pressure out for the same reason.
 //!
+//! **Sphere contact** (`TissueBody::indenter`): the penalty energy `E_c =
+//! sum_i k_i / 2 <|x_i - c| - R>_-^2` over the surface nodes, `k_i = kappa
+//! E* sqrt(A_i)` ([`crate::contact`], Wriggers 2006 eq. 6.47; the rule of the
+//! `fem` model), is added to the Newton objective, its gradient and its
+//! Hessian-vector product (exact), with the centre `c` at the command's
+//! load factor, `SphereIndenter::centre_at(insertion)`. Backward Euler and
+//! quasi-static only: the explicit integrator and the PBD corrections are
+//! refused with a reason when the scene has a sphere.
+//!
 //! **Reports.** `hand_force` is the force the body exerts on whatever drives
-//! the driven nodes: the sum over driven nodes of the internal elastic force
-//! `-dU/dx` plus their weight and any pressure on them (N). `TissueObs::inverted` counts nodes whose
+//! it: the sum over driven nodes of the internal elastic force `-dU/dx` plus
+//! their weight and any pressure on them, plus the force the body exerts on
+//! the sphere, `sum_i k_i g_i n_i` (N). The contact energy counts in
+//! `EnergyObs::elastic` and in the energy probe's potential. `TissueObs::inverted` counts nodes whose
 //! deformation gradient has `det F <= 0`; `volume_error` uses the scene's
 //! tets as virtual tetrahedra. With PBD on, the corrections change the
 //! configuration; they are not forces and do not enter `hand_force`.
@@ -53,6 +64,7 @@ use surgbench_core::{
     ModelFactory, Observation, Scene, SimError, StepStats, TissueBody, TissueObs, Unsupported, Vec3,
 };
 
+use crate::contact::{DEFAULT_KAPPA, SphereContact};
 use crate::elastic::{PointElastic, StateCache};
 use crate::mls::MlsMap;
 use crate::pbd::PbdConstraints;
@@ -92,6 +104,10 @@ pub const MESHLESS_KEYS: &[FidelityKey] = &[
         name: "pbd_tet",
         doc: "PBD virtual-tet energy stiffness in [0, 1] (default 0.5)",
     },
+    FidelityKey {
+        name: "contact_stiffness",
+        doc: "sphere contact penalty factor kappa: node stiffness kappa E/(1-nu^2) sqrt(node boundary area) (default 100; penetration ~ contact strain / kappa of the node spacing)",
+    },
 ];
 
 /// Time integrator.
@@ -128,6 +144,8 @@ pub struct MeshlessSettings {
     pub pbd_stretch: f64,
     /// PBD tet stiffness.
     pub pbd_tet: f64,
+    /// Penalty factor `kappa` of the sphere contact ([`crate::contact`]).
+    pub contact_stiffness: f64,
 }
 
 impl MeshlessSettings {
@@ -188,6 +206,7 @@ impl MeshlessSettings {
             pbd: flag("pbd", f.extra("pbd", 0.0))?,
             pbd_stretch: unit("pbd_stretch", f.extra("pbd_stretch", 0.5))?,
             pbd_tet: unit("pbd_tet", f.extra("pbd_tet", 0.5))?,
+            contact_stiffness: positive("contact_stiffness", f.extra("contact_stiffness", DEFAULT_KAPPA))?,
         })
     }
 }
@@ -201,6 +220,7 @@ const CAPS: &[Capability] = &[
     Capability::PressureLoad,
     Capability::RollerConstraint,
     Capability::HapticForce,
+    Capability::TissueContact,
 ];
 
 impl ModelFactory for MeshlessFactory {
@@ -312,6 +332,9 @@ pub struct MeshlessTissue {
     load_scale: f64,
     /// Pressure nodal forces at the last gradient evaluation (N).
     pforces: Vec<Vec3>,
+    /// Penalty contact with the scene's rigid sphere, if any, centred where
+    /// the last step's command put it.
+    contact: Option<SphereContact>,
 }
 
 impl MeshlessTissue {
@@ -404,6 +427,29 @@ impl MeshlessTissue {
         let pbd = set
             .pbd
             .then(|| PbdConstraints::new(&mesh.nodes, &mesh.tets, set.pbd_stretch, set.pbd_tet));
+        let contact = match &body.indenter {
+            None => None,
+            Some(ind) if set.integrator == Integrator::SymplecticEuler => {
+                return Err(Unsupported::new(format!(
+                    "meshless: sphere contact (indenter of radius {} m) is a stiff penalty (kappa E* sqrt(A)) solved in the implicit integrators (1, 2); the explicit one (0) would need a time step below its stability limit",
+                    ind.radius
+                ))
+                .into());
+            }
+            Some(_) if set.pbd => {
+                return Err(Unsupported::new(
+                    "meshless: the PBD corrections (pbd=1) move nodes after the contact solve and would push them into the sphere; sphere contact needs pbd=0",
+                )
+                .into());
+            }
+            Some(ind) => Some(SphereContact::new(
+                &mesh.nodes,
+                &surface_faces_global,
+                &m,
+                set.contact_stiffness,
+                *ind,
+            )),
+        };
         Ok(Self {
             set,
             cache: StateCache::default(),
@@ -431,6 +477,7 @@ impl MeshlessTissue {
             pressure: PressureLoad::new(&body.pressure_faces),
             load_scale: 0.0,
             pforces: vec![Vec3::zeros(); nn],
+            contact,
             el,
         })
     }
@@ -600,7 +647,7 @@ impl MeshlessTissue {
     #[allow(clippy::too_many_arguments)]
     fn objective(&self, x: &[Vec3], xn: &[Vec3], xt: &[Vec3], a_in: f64, a_damp: f64, frozen: &[Vec3]) -> f64 {
         let (u, hg) = self.el.energy(x);
-        let mut e = u + hg;
+        let mut e = u + hg + self.contact.as_ref().map_or(0.0, |c| c.energy(x));
         for i in 0..x.len() {
             let m = self.mass[i];
             e -= m * self.gravity.dot(&x[i]) + frozen[i].dot(&x[i]);
@@ -623,9 +670,13 @@ impl MeshlessTissue {
     fn gradient(&mut self, x: &[Vec3], xn: &[Vec3], xt: &[Vec3], a_in: f64, a_damp: f64, g: &mut [Vec3]) {
         self.internal_forces(x);
         self.pressure_forces(x);
+        g.iter_mut().for_each(|v| *v = Vec3::zeros());
+        if let Some(c) = &self.contact {
+            c.add_gradient(x, g);
+        }
         for i in 0..x.len() {
             let m = self.mass[i];
-            let mut gi = -self.forces[i] - self.pforces[i] - self.gravity * m;
+            let mut gi = g[i] - self.forces[i] - self.pforces[i] - self.gravity * m;
             if a_in > 0.0 {
                 gi += (x[i] - xt[i]) * (m * a_in) + (x[i] - xn[i]) * (m * a_damp);
             }
@@ -674,6 +725,9 @@ impl MeshlessTissue {
                 hp.iter_mut().for_each(|v| *v = Vec3::zeros());
                 self.el.add_hess_vec(&self.cache, &p, &mut hp);
                 self.pressure.add_sym_stiffness(&x, self.load_scale, &p, &mut hp);
+                if let Some(c) = &self.contact {
+                    c.add_hess_vec(&x, &p, &mut hp);
+                }
                 let mut php = 0.0;
                 for i in 0..n {
                     hp[i] = (hp[i] + p[i] * (self.mass[i] * diag)).component_mul(&self.axis_free[i]);
@@ -766,7 +820,7 @@ impl MeshlessTissue {
     fn energies(&self) -> EnergyObs {
         let (u, hg) = self.el.energy(&self.x);
         let mut e = EnergyObs {
-            elastic: u + hg,
+            elastic: u + hg + self.contact.as_ref().map_or(0.0, |c| c.energy(&self.x)),
             ..Default::default()
         };
         for i in 0..self.x.len() {
@@ -793,6 +847,9 @@ impl Model for MeshlessTissue {
             converged: true,
         };
         self.load_scale = cmd.insertion;
+        if let Some(c) = &mut self.contact {
+            c.set_load(cmd.insertion);
+        }
         match self.set.integrator {
             Integrator::SymplecticEuler => {
                 let x = std::mem::take(&mut self.x);
@@ -868,7 +925,8 @@ impl Model for MeshlessTissue {
             .driven
             .iter()
             .map(|&(i, _)| self.forces[i] + self.pforces[i] + self.gravity * self.mass[i])
-            .sum();
+            .sum::<Vec3>()
+            + self.contact.as_ref().map_or(Vec3::zeros(), |c| c.reaction(&self.x));
         Ok(stats)
     }
 
@@ -914,7 +972,8 @@ impl Model for MeshlessTissue {
 }
 
 /// Coordinates are the node positions `(x0, y0, z0, x1, ...)` (m); the
-/// potential is strain + hourglass energy + gravity (J); forces are `-dE/dq`
+/// potential is strain + hourglass energy + the sphere contact's penalty energy
+/// (sphere where the last step left it) + gravity (J); forces are `-dE/dq`
 /// (N). Pressure loads are left out: a follower load on an open surface has
 /// no potential ([`crate::pressure`]).
 impl EnergyProbe for MeshlessTissue {
@@ -929,7 +988,7 @@ impl EnergyProbe for MeshlessTissue {
     }
     fn potential(&self) -> f64 {
         let (u, hg) = self.el.energy(&self.x);
-        u + hg
+        u + hg + self.contact.as_ref().map_or(0.0, |c| c.energy(&self.x))
             - (0..self.x.len())
                 .map(|i| self.mass[i] * self.gravity.dot(&self.x[i]))
                 .sum::<f64>()
@@ -939,6 +998,11 @@ impl EnergyProbe for MeshlessTissue {
         self.el.prepare(&self.x, &mut cache);
         let mut f = vec![Vec3::zeros(); self.x.len()];
         self.el.add_forces(&self.x, &cache, &mut f);
+        if let Some(c) = &self.contact {
+            let mut g = vec![Vec3::zeros(); self.x.len()];
+            c.add_gradient(&self.x, &mut g);
+            f.iter_mut().zip(&g).for_each(|(fi, gi)| *fi -= gi);
+        }
         f.iter()
             .zip(&self.mass)
             .flat_map(|(fi, m)| (fi + self.gravity * *m).iter().copied().collect::<Vec<_>>())
