@@ -13,6 +13,23 @@
 //!   `(1/6)(p4-p1) x (p2-p1)`, `(1/6)(p2-p1) x (p3-p1)`; see
 //!   [`tet_volume_gradients`]. Volumes are signed; `V0` is the signed rest volume.
 //!
+//! * **rollers** (`TissueBody::partial_fixed`): one hard constraint per
+//!   held world component, `C = x_c - X_c = 0` (`alpha = 0`, gradient the
+//!   unit axis, so `dx_c = -C`), projected after each iteration's colour
+//!   passes (and after the contacts);
+//! * **sphere contact** (`TissueBody::indenter`): one unilateral hard
+//!   constraint per boundary particle, `C = |x - c| - R >= 0` (the collision
+//!   constraint of Müller et al. 2007 sec. 4.4, with XPBD's multiplier,
+//!   Macklin et al. 2016 eqs. 17-18, `alpha = 0`): with `n = (x - c) / |x -
+//!   c|` and the particle's inverse mass `W = w diag(free axes)` (a roller's
+//!   held axes take no correction), `dlambda = -C / (n^T W n)`, clamped so
+//!   the substep's accumulated `lambda >= 0` (the sphere pushes, never
+//!   pulls: a separating particle gives back what it received, no more),
+//!   and `dx = W n dlambda`. Projected after each iteration's colour passes,
+//!   on the caller's thread in candidate order (so bit-identical for any
+//!   thread count), with the centre `c` at the substep's load factor
+//!   (`SphereIndenter::centre_at(insertion)`).
+//!
 //! **Material mapping** (stated, approximate): with Lamé parameters
 //! `mu = E / (2 (1 + nu))`, `lambda = E nu / ((1 + nu)(1 - 2 nu))`, each tet
 //! `t` gives each of its edges a spring stiffness `mu |V_t| / L0^2` (summed over
@@ -27,7 +44,11 @@
 //!
 //! **Hand force**: the reaction on the driven nodes is minus the gradient of
 //! the constraint energy `sum C^2 / (2 alpha)` at the current positions
-//! (plus the driven nodes' weight). XPBD's own estimate
+//! (plus the driven nodes' weight), plus the force the body exerts on the
+//! sphere, `-sum n dlambda / h^2` over the substep's contact projections,
+//! i.e. `-sum_j n_j lambda_j / h^2` once the normals settle (a hard constraint
+//! has no energy: its multiplier is its force, Macklin et al. 2016 eq. 9;
+//! the same convention as hard volume constraints below). XPBD's own estimate
 //! `sum grad C lambda / h^2` (kept as [`PbdTissue::multiplier_hand_force`])
 //! equals it only when the substep's solve converged: the multipliers
 //! restart from zero every substep, and on a stiff mesh (`k h^2 / m >> 1`)
@@ -141,7 +162,12 @@ pub const TISSUE_KEYS: &[FidelityKey] = &[
 #[derive(Debug, Clone, Copy, Default)]
 pub struct PbdTissueFactory;
 
-const TISSUE_CAPS: &[Capability] = &[Capability::Tissue, Capability::HapticForce];
+const TISSUE_CAPS: &[Capability] = &[
+    Capability::Tissue,
+    Capability::HapticForce,
+    Capability::RollerConstraint,
+    Capability::TissueContact,
+];
 
 impl ModelFactory for PbdTissueFactory {
     fn id(&self) -> &'static str {
@@ -510,6 +536,90 @@ pub struct PbdTissue {
     scale: f64,
     /// Length of the last substep (s); velocities of contact corrections.
     last_h: f64,
+    /// Free (not fixed, not driven) nodes on rollers, with their held axes.
+    rollers: Vec<(u32, [bool; 3])>,
+    /// Unilateral contact with the scene's rigid sphere, if any.
+    sphere: Option<SphereContact>,
+    /// Force the body exerts on the sphere in the last substep (N).
+    sphere_force: Vec3,
+}
+
+/// The hard unilateral contact of the boundary particles with a rigid
+/// sphere (see the module docs).
+#[derive(Debug, Clone)]
+struct SphereContact {
+    path: surgbench_core::scene::SphereIndenter,
+    /// Centre in the current substep (m).
+    centre: Vec3,
+    /// Candidate particles: boundary nodes that move.
+    nodes: Vec<u32>,
+    /// Axes each candidate may move along (1) or not (0, roller).
+    free: Vec<Vec3>,
+    /// Multipliers accumulated over the current substep (kg m).
+    lambda: Vec<f64>,
+    /// `sum n dlambda` over the substep's projections (kg m), each with the
+    /// normal it was applied along: the momentum the sphere gave the body
+    /// times `h` (rollers take the part along their held axes).
+    impulse: Vec3,
+}
+
+impl SphereContact {
+    /// Project every candidate once against the sphere (Gauss-Seidel, in
+    /// candidate order), reading and writing `x`; `w` the inverse masses.
+    fn project(&mut self, x: &[AtomicU64], w: &[f64]) {
+        let r = self.path.radius;
+        for (j, &i) in self.nodes.iter().enumerate() {
+            let i = i as usize;
+            let wi = w[i];
+            if wi == 0.0 {
+                continue;
+            }
+            let p = x.node(i);
+            let rel = p - self.centre;
+            let d = rel.norm();
+            let c = d - r;
+            // Outside with nothing to give back, or at the centre (no normal).
+            if (c >= 0.0 && self.lambda[j] == 0.0) || d == 0.0 {
+                continue;
+            }
+            let n = rel / d;
+            let wn = n.component_mul(&self.free[j]);
+            let den = wi * n.dot(&wn);
+            if den == 0.0 {
+                continue;
+            }
+            let lam = (self.lambda[j] - c / den).max(0.0);
+            let dl = lam - self.lambda[j];
+            self.lambda[j] = lam;
+            self.impulse += n * dl;
+            x.set_node(i, &(p + wn * (wi * dl)));
+        }
+    }
+
+    /// Force the body exerts on the sphere (N): minus the contact forces
+    /// on the particles, `-sum n dlambda / h^2` over the substep's
+    /// projections (`sum_j n_j lambda_j / h^2` when the normals settle).
+    fn reaction(&self, h2: f64) -> Vec3 {
+        -self.impulse / h2
+    }
+}
+
+/// Reset the held components of the roller nodes to their rest values
+/// (hard constraints `x_c - X_c = 0`); `w` = 0 marks nodes that do not move.
+fn project_rollers(rollers: &[(u32, [bool; 3])], rest: &[Vec3], x: &[AtomicU64], w: &[f64]) {
+    for &(i, axes) in rollers {
+        let i = i as usize;
+        if w[i] == 0.0 {
+            continue;
+        }
+        let mut p = x.node(i);
+        for a in 0..3 {
+            if axes[a] {
+                p[a] = rest[i][a];
+            }
+        }
+        x.set_node(i, &p);
+    }
 }
 
 impl PbdTissue {
@@ -519,6 +629,12 @@ impl PbdTissue {
         scene.validate().map_err(|e| BuildError::bad("scene", e))?;
         let set = TissueSettings::resolve(scene, fidelity)?;
         let body = scene.tissues().next().expect("checked: one tissue");
+        if body.indenter.is_some() && set.hash_box > 0.0 {
+            return Err(Unsupported::new(
+                "pbd-tissue: local activation (hash_box > 0) follows the driven nodes, not the sphere; sphere contact needs hash_box = 0",
+            )
+            .into());
+        }
         let nn = body.mesh.nodes.len();
         if body.mesh.tets.is_empty() {
             return Err(BuildError::bad("mesh", "tissue mesh has no tets"));
@@ -632,6 +748,47 @@ impl PbdTissue {
             xa.set(i, p);
         }
         let rest_volume = tet_rest.iter().map(|v| v.abs()).sum();
+        let mut held = vec![[false; 3]; nn];
+        let mut rollers = Vec::new();
+        for &(i, axes) in &body.partial_fixed {
+            if i >= nn {
+                return Err(BuildError::bad(
+                    "mesh",
+                    format!("roller node {i} but the mesh has {nn} nodes"),
+                ));
+            }
+            if w[i] > 0.0 && axes.iter().any(|&a| a) {
+                for a in 0..3 {
+                    held[i][a] |= axes[a];
+                }
+                rollers.push((i as u32, axes));
+            }
+        }
+        let sphere = match &body.indenter {
+            None => None,
+            Some(ind) => {
+                let mut nodes: Vec<u32> = surgbench_core::mesh::boundary_faces(&body.mesh)
+                    .into_iter()
+                    .flatten()
+                    .filter(|&i| w[i] > 0.0)
+                    .map(|i| i as u32)
+                    .collect();
+                nodes.sort_unstable();
+                nodes.dedup();
+                let free = nodes
+                    .iter()
+                    .map(|&i| Vec3::from_fn(|a, _| if held[i as usize][a] { 0.0 } else { 1.0 }))
+                    .collect();
+                Some(SphereContact {
+                    path: *ind,
+                    centre: ind.centre,
+                    lambda: vec![0.0; nodes.len()],
+                    impulse: Vec3::zeros(),
+                    nodes,
+                    free,
+                })
+            }
+        };
         let mut lo = Vec3::repeat(f64::INFINITY);
         let mut hi = Vec3::repeat(f64::NEG_INFINITY);
         for p in &x {
@@ -679,6 +836,9 @@ impl PbdTissue {
             projections: 0,
             scale: (hi - lo).norm(),
             last_h: set.dt / set.substeps as f64,
+            rollers,
+            sphere,
+            sphere_force: Vec3::zeros(),
         };
         s.update_active();
         Ok(s)
@@ -815,6 +975,11 @@ impl PbdTissue {
         for &t in &self.active.tets {
             self.lambda_t[t as usize] = 0.0;
         }
+        if let Some(sp) = &mut self.sphere {
+            sp.centre = sp.path.centre_at(ins);
+            sp.lambda.iter_mut().for_each(|l| *l = 0.0);
+            sp.impulse = Vec3::zeros();
+        }
         let h2 = h * h;
         let iters = self.set.iterations;
         // Positions move to the shared (atomic) buffer for the solve: only the
@@ -846,6 +1011,8 @@ impl PbdTissue {
         let colors = self.part.color_start;
         let lambda_e = &mut self.lambda_e;
         let lambda_t = &mut self.lambda_t;
+        let sphere = &mut self.sphere;
+        let (rollers, rest) = (&self.rollers, &self.rest);
         let mut solve = || {
             let mut res = 0.0f64;
             for it in 0..iters {
@@ -861,6 +1028,10 @@ impl PbdTissue {
                     let r = ctx.solve_blocks(b0..b1, &mut lambda_e[e0..e1], &mut lambda_t[t0..t1], last);
                     res = res.max(r);
                 }
+                if let Some(sp) = sphere.as_mut() {
+                    sp.project(ctx.x, ctx.w);
+                }
+                project_rollers(rollers, rest, ctx.x, ctx.w);
             }
             res
         };
@@ -877,8 +1048,9 @@ impl PbdTissue {
             self.v[i] = (self.x[i] - self.x_prev[i]) / h;
         }
         let weight: Vec3 = self.driven.iter().map(|(i, _)| self.gravity * self.mass[*i]).sum();
-        self.multiplier_force = self.reaction_from_multipliers(h2) + weight;
-        self.hand_force = self.reaction_from_energy(h2) + weight;
+        self.sphere_force = self.sphere.as_ref().map_or(Vec3::zeros(), |sp| sp.reaction(h2));
+        self.multiplier_force = self.reaction_from_multipliers(h2) + weight + self.sphere_force;
+        self.hand_force = self.reaction_from_energy(h2) + weight + self.sphere_force;
     }
 
     /// Reaction of the active constraints on the driven nodes from this
@@ -979,11 +1151,20 @@ impl PbdTissue {
         f
     }
 
+    /// Force the body exerts on the sphere (N) in the last substep, from the
+    /// contact multipliers: `-sum_j n_j lambda_j / h^2`; zero without one.
+    /// Part of both [`Self::multiplier_hand_force`] and the observed
+    /// `hand_force`.
+    pub fn sphere_force(&self) -> Vec3 {
+        self.sphere_force
+    }
+
     /// Reaction on the driven nodes (N) estimated from the last substep's
-    /// XPBD multipliers plus the driven nodes' weight; the observed
-    /// `hand_force` uses the constraint energy's gradient instead (see the
-    /// module docs). The two agree when the solve converged; their gap
-    /// measures how far it is from converged.
+    /// XPBD multipliers plus the driven nodes' weight (plus the force on the
+    /// sphere, [`Self::sphere_force`]); the observed `hand_force` uses the
+    /// constraint energy's gradient instead (see the module docs). The two
+    /// agree when the solve converged; their gap measures how far it is from
+    /// converged.
     pub fn multiplier_hand_force(&self) -> Vec3 {
         self.multiplier_force
     }

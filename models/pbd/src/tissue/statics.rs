@@ -11,6 +11,10 @@
 //! "Numerical Optimization", sec. 10.3) whose linear systems are solved by
 //! Jacobi-preconditioned conjugate gradients (ibid. alg. 5.3), and stops on
 //! the gradient of the exact energy, never on an iteration count alone.
+//! Rollers hold their flagged components (the free coordinates are the
+//! unheld components of the free nodes). The hard sphere contact has no
+//! energy: a scene with one is refused (the minimisation would need the
+//! contact's inequality constraints).
 //! Units are SI (m, N, J).
 
 use surgbench_core::{Unsupported, Vec3};
@@ -68,12 +72,27 @@ struct Linearised {
     tets: Vec<([Vec3; 4], f64)>,
     /// Jacobi preconditioner (inverse diagonal; 0 on held coordinates).
     inv_diag: Vec<Vec3>,
+    /// Free (1) and held (0) coordinates ([`PbdTissue::static_masks`]).
+    mask: Vec<Vec3>,
 }
 
 impl PbdTissue {
-    /// Whether node `i` moves in the static problem (not fixed, not driven).
-    fn static_free(&self, i: usize) -> bool {
-        self.w[i] > 0.0
+    /// Which components of each node move in the static problem (1) or are
+    /// held (0): none of fixed and driven nodes, the unheld ones on rollers.
+    fn static_masks(&self) -> Vec<Vec3> {
+        let mut m: Vec<Vec3> = self
+            .w
+            .iter()
+            .map(|&w| if w > 0.0 { Vec3::repeat(1.0) } else { Vec3::zeros() })
+            .collect();
+        for &(j, axes) in &self.rollers {
+            for a in 0..3 {
+                if axes[a] {
+                    m[j as usize][a] = 0.0;
+                }
+            }
+        }
+        m
     }
 
     /// `U(x) - sum m g . x` over the whole mesh (J).
@@ -165,18 +184,18 @@ impl PbdTissue {
             }
             tets.push((gv, 1.0 / a));
         }
+        let mask = self.static_masks();
         let inv_diag = diag
             .iter()
-            .enumerate()
-            .map(|(i, d)| {
-                if self.static_free(i) {
-                    d.map(|c| if c > 0.0 { 1.0 / c } else { 0.0 })
-                } else {
-                    Vec3::zeros()
-                }
-            })
+            .zip(&mask)
+            .map(|(d, m)| d.map(|c| if c > 0.0 { 1.0 / c } else { 0.0 }).component_mul(m))
             .collect();
-        Linearised { edges, tets, inv_diag }
+        Linearised {
+            edges,
+            tets,
+            inv_diag,
+            mask,
+        }
     }
 
     /// `out = H p` on the free coordinates (`p` must vanish on held nodes).
@@ -200,10 +219,8 @@ impl PbdTissue {
                 out[idx[j]] += gv[j] * s;
             }
         }
-        for (i, o) in out.iter_mut().enumerate() {
-            if !self.static_free(i) {
-                *o = Vec3::zeros();
-            }
+        for (o, m) in out.iter_mut().zip(&lin.mask) {
+            *o = o.component_mul(m);
         }
     }
 
@@ -212,9 +229,7 @@ impl PbdTissue {
         let n = g.len();
         let dot = |a: &[Vec3], b: &[Vec3]| a.iter().zip(b).map(|(u, v)| u.dot(v)).sum::<f64>();
         let mut d = vec![Vec3::zeros(); n];
-        let mut r: Vec<Vec3> = (0..n)
-            .map(|i| if self.static_free(i) { -g[i] } else { Vec3::zeros() })
-            .collect();
+        let mut r: Vec<Vec3> = (0..n).map(|i| -g[i].component_mul(&lin.mask[i])).collect();
         let mut z: Vec<Vec3> = r.iter().zip(&lin.inv_diag).map(|(a, b)| a.component_mul(b)).collect();
         let mut p = z.clone();
         let mut hp = vec![Vec3::zeros(); n];
@@ -260,12 +275,18 @@ impl PbdTissue {
                 "static equilibrium: hard volume constraints (nu = 1/2) have no energy to minimise",
             ));
         }
+        if let Some(sp) = &self.sphere {
+            return Err(Unsupported::new(format!(
+                "static equilibrium: the hard sphere contact (radius {} m) has no energy to minimise; its inequality constraints are not in this solver",
+                sp.path.radius
+            )));
+        }
         let mut x = self.x.clone();
+        let mask = self.static_masks();
         let free_norm = |g: &[Vec3]| -> f64 {
             g.iter()
-                .enumerate()
-                .filter(|(i, _)| self.static_free(*i))
-                .map(|(_, v)| v.norm_squared())
+                .zip(&mask)
+                .map(|(v, m)| v.component_mul(m).norm_squared())
                 .sum::<f64>()
                 .sqrt()
         };
@@ -277,9 +298,8 @@ impl PbdTissue {
         loop {
             let held: f64 = g
                 .iter()
-                .enumerate()
-                .filter(|(i, _)| !self.static_free(*i))
-                .map(|(_, v)| v.norm_squared())
+                .zip(&mask)
+                .map(|(v, m)| (v - v.component_mul(m)).norm_squared())
                 .sum::<f64>()
                 .sqrt();
             let scale = held + weight;
