@@ -262,3 +262,24 @@ fn reruns_with_contact_are_bit_identical() {
         assert_eq!(a, b, "{f}: reruns differ");
     }
 }
+
+/// A strongly graded mesh is refused (one support radius cannot serve
+/// cells of very different sizes), with the grading in the reason; the
+/// uniform block is not.
+#[test]
+fn strongly_graded_meshes_are_refused_with_a_reason() {
+    let scene = platen_scene(2, true);
+    assert!(MeshlessFactory.check(&scene).is_ok());
+    let mut graded = scene.clone();
+    let surgbench_core::Body::Tissue(t) = &mut graded.bodies[0] else {
+        unreachable!()
+    };
+    // Stretch the top layer of cells 20 times in z: edges range over > x8.
+    for p in &mut t.mesh.nodes {
+        if p.z > 0.75 * L {
+            p.z = 0.5 * L + (p.z - 0.5 * L) * 20.0;
+        }
+    }
+    let e = MeshlessFactory.check(&graded).unwrap_err();
+    assert!(e.reason.contains("graded"), "{}", e.reason);
+}
