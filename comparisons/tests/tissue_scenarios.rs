@@ -65,7 +65,15 @@ fn every_tissue_scenario_instantiates_validates_and_needs_what_it_expects() {
         ),
         ("volume-preservation", vec![Capability::Tissue]),
         ("truth-cube", vec![Capability::Tissue]),
-        ("wall-indentation", vec![Capability::Tissue]),
+        (
+            "wall-indentation",
+            vec![
+                Capability::Tissue,
+                Capability::RollerConstraint,
+                Capability::TissueContact,
+            ],
+        ),
+        ("wall-punch", vec![Capability::Tissue]),
         (
             "sphere-indentation",
             vec![
@@ -86,6 +94,7 @@ fn every_tissue_scenario_instantiates_validates_and_needs_what_it_expects() {
             "volume-preservation",
             "truth-cube",
             "wall-indentation",
+            "wall-punch",
             "sphere-indentation"
         ]
     );

@@ -1,7 +1,7 @@
 //! Tissue statics: block compression, Lamé tube, volume preservation under
-//! squash and twist, the Truth Cube phantom, a catheter tip (bonded flat
-//! punch) indenting a vessel-wall sector, and a rigid sphere pressed into a
-//! block (frictionless contact, Hertz).
+//! squash and twist, the Truth Cube phantom, a spherical catheter tip
+//! indenting a vessel-wall sector (frictionless contact) and its bonded
+//! flat-punch companion, and a rigid sphere pressed into a block (Hertz).
 //!
 //! Shared conventions (SI units: m, kg, s, N, Pa, rad):
 //! * every scene holds exactly one [`TissueBody`], no gravity, and is static:
@@ -24,7 +24,7 @@
 //!   (`|V/V0 - 1|`), computed here from the observed node positions and the
 //!   scene's tets, not taken from the model's own report.
 //!
-//! Tubes (`lame-tube`, `wall-indentation`) have their axis along z through
+//! Tubes (`lame-tube`, `wall-indentation`, `wall-punch`) have their axis along z through
 //! the origin; blocks occupy `[0, L]^3` with the loaded face at `z = L`.
 
 use super::vessel::datasets_dir;
@@ -53,6 +53,7 @@ pub fn all() -> Vec<&'static dyn Scenario> {
         &VolumePreservation,
         &TruthCube,
         &WallIndentation,
+        &WallPunch,
         &SphereIndentation,
     ]
 }
@@ -1073,20 +1074,472 @@ impl Scenario for TruthCube {
 // wall-indentation
 // ---------------------------------------------------------------------------
 
+/// One profile probe of [`WallReference`]: `(line, coordinate, u_r (m))`,
+/// line 0 along z (m) at `theta = 0`, line 1 around theta (rad) at
+/// `z = length/2`.
+pub type WallProbe = (u8, f64, f64);
+
+/// The scikit-fem wall-indentation reference
+/// (`datasets/reference/wall-indentation`): a sector of an artery wall
+/// (axis z, `-angle/2 <= theta <= angle/2`, ends and straight edges
+/// clamped, outer surface free) indented at `theta = 0, z = length/2` by a
+/// rigid frictionless sphere inside the lumen, moved along `+x`; linear
+/// (small-strain) elasticity with unilateral contact (exact gap), P2 tets.
+/// Geometry, material and the mesh map are the reference's, read from its
+/// `meta.toml`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WallReference {
+    /// Inner radius `a` (m).
+    pub inner_radius: f64,
+    /// Outer radius `b` (m); wall thickness `b - a`.
+    pub outer_radius: f64,
+    /// Length of the segment along z (m).
+    pub length: f64,
+    /// Opening angle of the sector (rad).
+    pub sector_angle: f64,
+    /// Sphere (catheter tip) radius (m).
+    pub tip_radius: f64,
+    /// Half-width of the uniformly meshed band around the tip (m).
+    pub band: f64,
+    /// Radial grading exponent `kappa`: `r = a + t expm1(kappa xi) / expm1(kappa)`.
+    pub radial_grading: f64,
+    /// Young's modulus of the reference (Pa).
+    pub youngs_modulus: f64,
+    /// Poisson ratio of the reference.
+    pub poisson_ratio: f64,
+    /// `(depth (m), force on the sphere along +x (N))`, `wall-indentation.csv`.
+    pub curve: Vec<(f64, f64)>,
+    /// `(depth (m), axial extent of the contact from the tip centre (m))`.
+    pub extent: Vec<(f64, f64)>,
+    /// Inner-wall radial displacement per tabulated depth: `(depth (m),
+    /// probes)` (`surface-profile.csv`).
+    pub profiles: Vec<(f64, Vec<WallProbe>)>,
+}
+
+impl WallReference {
+    /// Load from `<datasets>/reference/wall-indentation/`.
+    pub fn load(datasets: &Path) -> Result<Self, UsageError> {
+        let dir = datasets.join("reference/wall-indentation");
+        let (meta, path) = read_meta(&dir)?;
+        let num = |k: &str| meta_number(&meta, &path, k);
+        let curve_file = dir.join("wall-indentation.csv");
+        let rows = read_csv_columns(&curve_file, &["depth_m", "force_n", "contact_extent_z_m"])?;
+        let curve: Vec<(f64, f64)> = rows.iter().map(|r| (r[0], r[1])).collect();
+        let extent = rows.iter().map(|r| (r[0], r[2])).collect();
+        let increasing =
+            curve.len() >= 3 && curve[0] == (0.0, 0.0) && curve.windows(2).all(|w| w[1].0 > w[0].0 && w[1].1 > w[0].1);
+        if !increasing {
+            return Err(UsageError(format!(
+                "{}: needs rows from (0, 0) with increasing depth and force",
+                curve_file.display()
+            )));
+        }
+        let prof_file = dir.join("surface-profile.csv");
+        let mut profiles: Vec<(f64, Vec<WallProbe>)> = Vec::new();
+        for r in read_csv_columns(&prof_file, &["depth_m", "line", "coordinate", "u_r_m"])? {
+            let line = match r[1] {
+                0.0 => 0,
+                1.0 => 1,
+                x => return Err(UsageError(format!("{}: line {x} is not 0 or 1", prof_file.display()))),
+            };
+            match profiles.last_mut() {
+                Some((d, v)) if *d == r[0] => v.push((line, r[2], r[3])),
+                Some((d, _)) if *d > r[0] => {
+                    return Err(UsageError(format!("{}: depths must increase", prof_file.display())));
+                }
+                _ => profiles.push((r[0], vec![(line, r[2], r[3])])),
+            }
+        }
+        let same_probes = profiles
+            .windows(2)
+            .all(|w| w[0].1.len() == w[1].1.len() && w[0].1.iter().zip(&w[1].1).all(|(p, q)| (p.0, p.1) == (q.0, q.1)));
+        if profiles.len() < 2 || !same_probes {
+            return Err(UsageError(format!(
+                "{}: needs >= 2 depths, each with the same probes",
+                prof_file.display()
+            )));
+        }
+        let r = Self {
+            inner_radius: num("inner_radius")?,
+            outer_radius: num("outer_radius")?,
+            length: num("length")?,
+            sector_angle: num("sector_angle")?,
+            tip_radius: num("tip_radius")?,
+            band: num("band")?,
+            radial_grading: num("radial_grading")?,
+            youngs_modulus: num("youngs_modulus")?,
+            poisson_ratio: num("poisson_ratio")?,
+            curve,
+            extent,
+            profiles,
+        };
+        let ok = r.inner_radius > 0.0
+            && r.outer_radius > r.inner_radius
+            && r.length > 0.0
+            && r.sector_angle > 0.0
+            && r.sector_angle < 2.0 * PI
+            && r.tip_radius > 0.0
+            && r.tip_radius < r.inner_radius
+            && r.band > 0.0
+            && 2.0 * r.band < (0.5 * r.length).min(0.5 * r.inner_radius * r.sector_angle)
+            && r.radial_grading > 0.0
+            && r.youngs_modulus > 0.0;
+        if !ok {
+            return Err(UsageError(format!("{}: inconsistent geometry {r:?}", path.display())));
+        }
+        Ok(r)
+    }
+
+    /// Depths (m) the force curve covers: from its first nonzero row to its last.
+    pub fn depth_range(&self) -> (f64, f64) {
+        (self.curve[1].0, self.curve[self.curve.len() - 1].0)
+    }
+
+    /// Force on the sphere (N) at `depth` (m) for Young's modulus `e` (Pa):
+    /// the curve interpolated linearly in `(ln depth, ln force)` (a local
+    /// power law, exact for `F ~ depth^p` between rows), times `e / E_ref`
+    /// (the displacement field of a prescribed rigid indenter does not
+    /// depend on `E`, so force scales with it). `None` outside
+    /// [`Self::depth_range`].
+    pub fn force(&self, depth: f64, e: f64) -> Option<f64> {
+        let logs: Vec<(f64, f64)> = self.curve[1..].iter().map(|(d, f)| (d.ln(), f.ln())).collect();
+        Some(interpolate(&logs, depth.ln())?.exp() * e / self.youngs_modulus)
+    }
+
+    /// Axial contact extent (m) at `depth` (linear interpolation).
+    pub fn contact_extent(&self, depth: f64) -> Option<f64> {
+        interpolate(&self.extent, depth)
+    }
+
+    /// The profile probes `(line, coordinate, u_r (m))` at `depth` (m),
+    /// interpolated linearly in depth between the two tabulated depths
+    /// around it (exact at a tabulated depth). `None` outside the table.
+    pub fn profile(&self, depth: f64) -> Option<Vec<WallProbe>> {
+        let i = self
+            .profiles
+            .windows(2)
+            .position(|w| depth >= w[0].0 && depth <= w[1].0)?;
+        let ((d0, p0), (d1, p1)) = (&self.profiles[i], &self.profiles[i + 1]);
+        let w = (depth - d0) / (d1 - d0);
+        Some(
+            p0.iter()
+                .zip(p1)
+                .map(|(a, b)| (a.0, a.1, a.2 + w * (b.2 - a.2)))
+                .collect(),
+        )
+    }
+
+    /// The reference's graded map along the arc or the axis: `rho(xi)` (m)
+    /// for `xi` in `[0, 1]`, uniform (`2 band xi`) over the first half,
+    /// then `c xi + (len - c) ((xi - 1/2) / (1/2))^2` with `c = 2 band`,
+    /// reaching `len` at `xi = 1` (`grading` in the script).
+    pub fn grading(&self, xi: f64, len: f64) -> f64 {
+        let c = 2.0 * self.band;
+        let t = ((xi - 0.5) / 0.5).max(0.0);
+        c * xi + (len - c) * t * t
+    }
+}
+
+/// Cells `(n_r, n_s)` of the quarter wall mesh at `level`: `2^(level+1)`
+/// through the wall and twice that along the arc and along z, so each level
+/// has 8x the tets of the one before (192, 1,536, 12,288, 98,304) and the
+/// band cells are `band / n_r` (0.25, 0.125, 0.0625, 0.031 mm).
+pub fn wall_sphere_cells(level: usize) -> (usize, usize) {
+    (2 << level, 4 << level)
+}
+
+/// The quarter wall (`y >= 0`, `z >= length/2`) at `level`: the structured
+/// block on the unit cube, node `(xi_r, xi_s, xi_z)` mapped to `r = a + t
+/// expm1(kappa xi_r) / expm1(kappa)`, arc `s = rho(xi_s)` on the inner wall
+/// (`theta = s / a`) and `z = length/2 + rho(xi_z)` ([`WallReference::grading`]):
+/// the reference's own map with fewer cells.
+pub fn wall_sphere_mesh(r: &WallReference, level: usize) -> TetMesh {
+    let (n_r, n_s) = wall_sphere_cells(level);
+    let mut m = mesh::block(Vec3::new(1.0, 1.0, 1.0), [n_r, n_s, n_s]);
+    let t = r.outer_radius - r.inner_radius;
+    let k = r.radial_grading;
+    let (arc, half) = (0.5 * r.inner_radius * r.sector_angle, 0.5 * r.length);
+    for p in &mut m.nodes {
+        let rad = r.inner_radius + t * (k * p.x).exp_m1() / k.exp_m1();
+        let th = r.grading(p.y, arc) / r.inner_radius;
+        *p = Vec3::new(rad * th.cos(), rad * th.sin(), half + r.grading(p.z, half));
+    }
+    mesh::orient_positive(&mut m);
+    m
+}
+
+/// A spherical catheter tip indenting a vessel-wall segment.
+///
+/// The scene: a rigid frictionless sphere of radius `R` (1 mm: a 6F
+/// catheter is 2 mm across) inside the lumen touches the inner wall at
+/// `theta = 0, z = length/2` and moves radially outward (`+x`) by `depth`
+/// along the load ramp ([`TissueBody::indenter`], so it needs
+/// `Capability::TissueContact`); the contact footprint grows with the
+/// depth. One quarter is modelled (`y >= 0`, `z >= length/2`) with rollers
+/// on the symmetry planes (`y` held on `y = 0`, `z` on `z = length/2`), the
+/// far end and the straight edge clamped, the outer surface free; the mesh
+/// ([`wall_sphere_mesh`]) is the reference's graded map. Geometry and
+/// material as [`WallPunch`] (inner radius 4 mm, wall 1 mm, 120 deg sector
+/// 8 mm long, `E = 1 MPa`, `nu = 0.45`, Holzapfel, Gasser & Ogden 2000).
+///
+/// The model reports the force the body exerts on the sphere as
+/// `hand_force`; the full force is `-4 hand_force.x`. Scores against the
+/// scikit-fem reference ([`WallReference`]): `force_error_rel` (primary)
+/// at full depth, `force_curve_error_rel` (RMS over the ramp against the
+/// reference at every step's depth `s depth`, accumulated in
+/// [`ScenarioRun::observe_step`]), `surface_error_rel` (the inner wall's
+/// radial displacement along the axial line through the tip and around the
+/// circumferential line through it, RMS error over RMS reference),
+/// `penetration_over_depth` (deepest inner-wall node inside the sphere) and
+/// `contact_extent_z_m` beside the reference's (the farthest inner-wall
+/// node along z touching the sphere: a cell's resolution).
+pub struct WallIndentation;
+
+/// Geometry, `E`'s reference value and `nu` come from the reference; the
+/// depth is bounded by the reference's curve (1-20 % of the wall thickness).
+const WALL_PARAMS: &[ParamSpec] = &[
+    p(
+        "depth",
+        1e-4,
+        "m",
+        Range::Positive,
+        "sphere travel into the wall at the end of the ramp, 1e-5..2e-4 (1-20 % of the 1 mm wall, the reference's range)",
+    ),
+    p(
+        "youngs_modulus",
+        1e6,
+        "Pa",
+        Range::Positive,
+        "Young's modulus (arterial wall order of magnitude, Holzapfel et al. 2000)",
+    ),
+    p(
+        "density",
+        1060.0,
+        "kg/m^3",
+        Range::Positive,
+        "density of the vessel wall",
+    ),
+    RAMP,
+    DURATION,
+    p(
+        "settle_tol",
+        4e-6,
+        "m/s",
+        Range::Positive,
+        "static equilibrium when every node is slower than this (after the ramp; ~1 % of the ramp's mean speed at the default depth)",
+    ),
+];
+
+struct WallSphereRun {
+    scene: Scene,
+    mesh: TetMesh,
+    depth: f64,
+    force_ref: f64,
+    extent_ref: f64,
+    radius: f64,
+    /// Inner-wall nodes (rest positions on `r = a`).
+    inner: Vec<usize>,
+    /// `(containing tet, weights, radial direction, reference u_r (m))` of
+    /// each profile probe.
+    probes: Vec<(usize, [f64; 4], Vec3, f64)>,
+    reference: WallReference,
+    e_scale: f64,
+    track: Mutex<CurveTrack>,
+}
+
+impl WallSphereRun {
+    /// Indentation force on the whole sphere (N): four quarters, the body
+    /// pushes the sphere back along `-x`.
+    fn force(obs: &Observation) -> f64 {
+        -4.0 * obs.hand_force.x
+    }
+    fn centre(&self, t: f64) -> Option<Vec3> {
+        let s = self.scene.control.command_at(t).insertion;
+        self.scene.tissues().next()?.indenter.map(|i| i.centre_at(s))
+    }
+}
+
+impl ScenarioRun for WallSphereRun {
+    fn scene(&self) -> &Scene {
+        &self.scene
+    }
+    fn score(&self, obs: &Observation) -> BTreeMap<String, f64> {
+        let mut m = BTreeMap::new();
+        let (Some(t), Some(c)) = (tissue_of(obs, &self.mesh), self.centre(obs.time)) else {
+            return m;
+        };
+        let f = Self::force(obs);
+        m.insert("reaction_force_n".into(), f);
+        m.insert("reference_force_n".into(), self.force_ref);
+        m.insert("force_error_rel".into(), (f - self.force_ref).abs() / self.force_ref);
+        m.insert("force_ratio".into(), f / self.force_ref);
+        let (mut pen, mut extent) = (0.0f64, 0.0f64);
+        let zc = 0.5 * self.reference.length;
+        for &i in &self.inner {
+            let gap = (t.nodes[i] - c).norm() - self.radius;
+            pen = pen.max(-gap);
+            // Touching: inside, or on the sphere to round-off.
+            if gap <= 1e-9 * self.radius {
+                extent = extent.max(self.mesh.nodes[i].z - zc);
+            }
+        }
+        m.insert("penetration_over_depth".into(), pen / self.depth);
+        m.insert("contact_extent_z_m".into(), extent);
+        m.insert("reference_contact_extent_z_m".into(), self.extent_ref);
+        let (mut e2, mut r2, mut emax) = (0.0, 0.0, 0.0f64);
+        for (e, w, dir, want) in &self.probes {
+            let tet = self.mesh.tets[*e];
+            let u: Vec3 = (0..4).map(|k| (t.nodes[tet[k]] - self.mesh.nodes[tet[k]]) * w[k]).sum();
+            let d = u.dot(dir) - want;
+            e2 += d * d;
+            r2 += want * want;
+            emax = emax.max(d.abs());
+        }
+        if r2 > 0.0 {
+            m.insert("surface_error_rel".into(), (e2 / r2).sqrt());
+            m.insert("surface_error_max_rel".into(), emax / self.depth);
+        }
+        if let Some(e) = self.track.lock().unwrap_or_else(|e| e.into_inner()).error_rel() {
+            m.insert("force_curve_error_rel".into(), e);
+        }
+        common_metrics(&mut m, &self.mesh, t);
+        m
+    }
+    fn observe_step(&self, obs: &Observation) {
+        let s = self.scene.control.command_at(obs.time).insertion;
+        // The reference at this step's depth; none below its first row.
+        let Some(want) = self.reference.force(s * self.depth, self.e_scale) else {
+            return;
+        };
+        let mut c = self.track.lock().unwrap_or_else(|e| e.into_inner());
+        c.add(obs.time, Self::force(obs), want);
+    }
+    fn energy_scale(&self) -> f64 {
+        // The work is below F depth (the force grows with the depth).
+        self.force_ref * self.depth
+    }
+    fn length_scale(&self) -> f64 {
+        self.reference.length
+    }
+}
+
+impl Scenario for WallIndentation {
+    fn id(&self) -> &'static str {
+        "wall-indentation"
+    }
+    fn description(&self) -> &'static str {
+        "vessel-wall sector (r 4-5 mm, quarter) indented by a rigid frictionless sphere (catheter tip, R 1 mm): force-depth curve, deformed inner wall, contact extent"
+    }
+    fn family(&self) -> Family {
+        Family::Tissue
+    }
+    fn params(&self) -> &'static [ParamSpec] {
+        WALL_PARAMS
+    }
+    fn reference(&self) -> &'static str {
+        "scikit-fem P2, LINEAR elasticity, frictionless unilateral contact with the exact gap (datasets/reference/wall-indentation)"
+    }
+    fn primary_error(&self) -> &'static str {
+        "force_error_rel"
+    }
+    /// Mesh levels 0-3 with 8 quasi-static load steps over the default ramp
+    /// ([`SPHERE_DT`]).
+    fn sweep(&self) -> Vec<Fidelity> {
+        (0..=MAX_LEVEL)
+            .map(|l| Fidelity {
+                mesh_level: Some(l),
+                dt: Some(SPHERE_DT),
+                ..Default::default()
+            })
+            .collect()
+    }
+    fn quick_sweep(&self) -> Vec<Fidelity> {
+        self.sweep().into_iter().take(2).collect()
+    }
+    fn instantiate_at(&self, p: &Params, fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
+        let level = mesh_level(self.id(), fidelity)?;
+        let r = WallReference::load(&datasets_dir())?;
+        let (depth, e) = (p.get("depth"), p.get("youngs_modulus"));
+        let (lo, hi) = r.depth_range();
+        let (Some(force_ref), Some(extent_ref), Some(profile)) =
+            (r.force(depth, e), r.contact_extent(depth), r.profile(depth))
+        else {
+            return Err(UsageError(format!(
+                "wall-indentation: depth {depth} m is outside the reference's [{lo}, {hi}] m"
+            )));
+        };
+        let mesh = wall_sphere_mesh(&r, level);
+        let (a, half_angle, zc) = (r.inner_radius, 0.5 * r.sector_angle, 0.5 * r.length);
+        let tol = 1e-9 * r.outer_radius;
+        let mut body = TissueBody::new(mesh.clone(), material(p, r.poisson_ratio));
+        body.fixed_nodes = mesh::nodes_where(&mesh, |x| x.y.atan2(x.x) >= half_angle - 1e-9 || x.z >= r.length - tol);
+        let fixed: HashSet<usize> = body.fixed_nodes.iter().copied().collect();
+        body.partial_fixed = mesh::nodes_where(&mesh, |x| x.y <= tol || (x.z - zc).abs() <= tol)
+            .into_iter()
+            .filter(|i| !fixed.contains(i))
+            .map(|i| {
+                let x = mesh.nodes[i];
+                (i, [false, x.y <= tol, (x.z - zc).abs() <= tol])
+            })
+            .collect();
+        body.indenter = Some(surgbench_core::scene::SphereIndenter {
+            centre: Vec3::new(a - r.tip_radius, 0.0, zc),
+            radius: r.tip_radius,
+            travel: Vec3::new(depth, 0.0, 0.0),
+        });
+        let inner = mesh::nodes_on_cylinder(&mesh, a, tol);
+        // Probes mirrored onto the quarter, a hair inside the wall, the
+        // clamped ends pulled in by 1e-9 of their extent (as the script).
+        let rp = a * (1.0 + 1e-9);
+        let probes = profile
+            .iter()
+            .map(|&(line, coord, want)| {
+                let (x, dir) = if line == 0 {
+                    let z = (zc + (coord - zc).abs()).min(r.length * (1.0 - 1e-9));
+                    (Vec3::new(rp, 0.0, z), Vec3::x())
+                } else {
+                    let th = coord.abs().min(half_angle * (1.0 - 1e-9));
+                    let dir = Vec3::new(th.cos(), th.sin(), 0.0);
+                    (rp * dir + Vec3::new(0.0, 0.0, zc), dir)
+                };
+                let (e, w) = locate(&mesh, &x).expect("wall mesh has tets");
+                (e, w, dir, want)
+            })
+            .collect();
+        Ok(Box::new(WallSphereRun {
+            scene: static_scene(self.id(), body, p)?,
+            mesh,
+            depth,
+            force_ref,
+            extent_ref,
+            radius: r.tip_radius,
+            inner,
+            probes,
+            e_scale: e,
+            reference: r,
+            track: Mutex::new(CurveTrack::default()),
+        }))
+    }
+}
+
+// ---------------------------------------------------------------------------
+// wall-punch
+// ---------------------------------------------------------------------------
+
 /// Relative tolerance of the footprint rule `y^2 + (z - L/2)^2 <= r_p^2 (1 +
 /// tol)`: inclusive, so nodes exactly on the punch rim count on every level
 /// (the scikit-fem script applies the same rule to its DOFs).
 pub const FOOTPRINT_TOL: f64 = 1e-6;
 
-/// The scikit-fem wall-indentation reference
-/// (`datasets/reference/wall-indentation`): a sector of an artery wall
+/// The scikit-fem wall-punch reference
+/// (`datasets/reference/wall-punch`): a sector of an artery wall
 /// (axis z, `-angle/2 <= theta <= angle/2`, ends and straight edges clamped,
 /// outer surface free) indented at `theta = 0, z = length/2` by a rigid
 /// flat-ended circular punch bonded to the inner wall and moved along `+x`;
 /// linear (small-strain) elasticity, P2 tets. Geometry and material are the
 /// reference's and are read from its `meta.toml`.
 #[derive(Debug, Clone, PartialEq)]
-pub struct WallReference {
+pub struct PunchReference {
     /// Inner radius `a` (m).
     pub inner_radius: f64,
     /// Outer radius `b` (m); wall thickness `b - a`.
@@ -1101,17 +1554,17 @@ pub struct WallReference {
     pub youngs_modulus: f64,
     /// Poisson ratio of the reference.
     pub poisson_ratio: f64,
-    /// `(depth (m), punch force (N))` rows of `wall-indentation.csv`.
+    /// `(depth (m), punch force (N))` rows of `wall-punch.csv`.
     pub curve: Vec<(f64, f64)>,
     /// `(z (m), u_r / depth)` of the inner wall along `theta = 0`
     /// (`surface-profile.csv`).
     pub profile: Vec<(f64, f64)>,
 }
 
-impl WallReference {
-    /// Load from `<datasets>/reference/wall-indentation/`.
+impl PunchReference {
+    /// Load from `<datasets>/reference/wall-punch/`.
     pub fn load(datasets: &Path) -> Result<Self, UsageError> {
-        let dir = datasets.join("reference/wall-indentation");
+        let dir = datasets.join("reference/wall-punch");
         let (meta, path) = read_meta(&dir)?;
         let num = |k: &str| meta_number(&meta, &path, k);
         let r = Self {
@@ -1122,7 +1575,7 @@ impl WallReference {
             punch_radius: num("punch_radius")?,
             youngs_modulus: num("youngs_modulus")?,
             poisson_ratio: num("poisson_ratio")?,
-            curve: read_curve(&dir.join("wall-indentation.csv"), "depth_m", "force_n")?,
+            curve: read_curve(&dir.join("wall-punch.csv"), "depth_m", "force_n")?,
             profile: read_curve(&dir.join("surface-profile.csv"), "z_m", "u_r_over_depth")?,
         };
         let ok = r.inner_radius > 0.0
@@ -1156,7 +1609,7 @@ impl WallReference {
 /// through the wall and as many cells of that size as fit (rounded) around
 /// the inner arc and along the segment, so each level has 8x the tets of
 /// the one before.
-pub fn wall_cells(r: &WallReference, level: usize) -> (usize, usize, usize) {
+pub fn wall_cells(r: &PunchReference, level: usize) -> (usize, usize, usize) {
     let t = r.outer_radius - r.inner_radius;
     let around = ((r.inner_radius * r.sector_angle / t).round() as usize).max(1);
     let along = ((r.length / t).round() as usize).max(1);
@@ -1166,7 +1619,7 @@ pub fn wall_cells(r: &WallReference, level: usize) -> (usize, usize, usize) {
 /// The wall mesh at `level`: [`mesh::tube_sector`] turned about z by
 /// `-angle/2`, so the sector spans `-angle/2 <= theta <= angle/2` and the
 /// punch sits on the `+x` axis.
-pub fn wall_mesh(r: &WallReference, level: usize) -> TetMesh {
+pub fn wall_mesh(r: &PunchReference, level: usize) -> TetMesh {
     let (n_t, n_r, n_z) = wall_cells(r, level);
     let m = mesh::tube_sector(r.inner_radius, r.outer_radius, r.length, r.sector_angle, n_t, n_r, n_z);
     let rot = nalgebra::Rotation3::from_axis_angle(&Vec3::z_axis(), -0.5 * r.sector_angle);
@@ -1178,7 +1631,7 @@ pub fn wall_mesh(r: &WallReference, level: usize) -> TetMesh {
 
 /// Inner-wall nodes of `mesh` inside the punch footprint:
 /// `y^2 + (z - length/2)^2 <= r_p^2 (1 + FOOTPRINT_TOL)`, ascending.
-pub fn wall_footprint(r: &WallReference, mesh: &TetMesh) -> Vec<usize> {
+pub fn wall_footprint(r: &PunchReference, mesh: &TetMesh) -> Vec<usize> {
     let zc = 0.5 * r.length;
     let rp2 = r.punch_radius * r.punch_radius * (1.0 + FOOTPRINT_TOL);
     mesh::nodes_on_cylinder(mesh, r.inner_radius, 1e-9 * r.outer_radius)
@@ -1192,7 +1645,7 @@ pub fn wall_footprint(r: &WallReference, mesh: &TetMesh) -> Vec<usize> {
 
 /// Clamped nodes of the wall: both ends (`z = 0, length`) and both straight
 /// edges (`|theta| = angle/2`), ascending.
-pub fn wall_clamped(r: &WallReference, mesh: &TetMesh) -> Vec<usize> {
+pub fn wall_clamped(r: &PunchReference, mesh: &TetMesh) -> Vec<usize> {
     let tol = 1e-9 * r.outer_radius;
     let half = 0.5 * r.sector_angle - 1e-9;
     mesh::nodes_where(mesh, |x| {
@@ -1200,15 +1653,14 @@ pub fn wall_clamped(r: &WallReference, mesh: &TetMesh) -> Vec<usize> {
     })
 }
 
-/// A catheter tip indenting a vessel-wall segment.
+/// A catheter tip modelled as a bonded flat punch on a vessel-wall segment.
 ///
-/// The catheter tip is a sphere, whose contact footprint grows with
-/// the depth. The contract now has that contact ([`TissueBody::indenter`],
-/// verified against Hertz by `sphere-indentation`), but this wall scene and
-/// its scikit-fem reference still use the stand-in built before it: a rigid
-/// flat-ended circular punch of the catheter's radius,
+/// The linear companion of [`WallIndentation`] (the sphere in unilateral
+/// contact): a rigid flat-ended circular punch of the catheter's radius,
 /// bonded to the inner wall (every component of the footprint nodes is
-/// prescribed) and pushed radially outward (`+x`) by `depth`.
+/// prescribed) and pushed radially outward (`+x`) by `depth`. It needs no
+/// tissue contact, so every tissue model runs it, and it is the scene of
+/// the PBD local-activation study (`comparisons/pbd-hash.toml`).
 ///
 /// Geometry and material (from the reference's `meta.toml`): inner radius
 /// 4 mm and wall thickness 1 mm (carotid / femoral artery size), a 120 deg
@@ -1226,11 +1678,11 @@ pub fn wall_clamped(r: &WallReference, mesh: &TetMesh) -> Vec<usize> {
 /// a linear quasi-static model) and the radial displacement of the inner
 /// wall along the axial line through the punch centre, outside the footprint
 /// (`surface_error_rel`: RMS error over RMS reference displacement).
-pub struct WallIndentation;
+pub struct WallPunch;
 
 /// Geometry, `E`'s reference value and `nu` come from the reference; the
 /// depth is bounded by the reference's curve (20 % of the wall thickness).
-const WALL_PARAMS: &[ParamSpec] = &[
+const PUNCH_PARAMS: &[ParamSpec] = &[
     p(
         "depth",
         5e-5,
@@ -1294,7 +1746,7 @@ impl CurveTrack {
     }
 }
 
-struct WallRun {
+struct PunchRun {
     scene: Scene,
     mesh: TetMesh,
     depth: f64,
@@ -1305,14 +1757,14 @@ struct WallRun {
     track: Mutex<CurveTrack>,
 }
 
-impl WallRun {
+impl PunchRun {
     /// Indentation force (N): the body pushes the punch back along `-x`.
     fn force(obs: &Observation) -> f64 {
         -obs.hand_force.x
     }
 }
 
-impl ScenarioRun for WallRun {
+impl ScenarioRun for PunchRun {
     fn scene(&self) -> &Scene {
         &self.scene
     }
@@ -1364,21 +1816,21 @@ impl ScenarioRun for WallRun {
     }
 }
 
-impl Scenario for WallIndentation {
+impl Scenario for WallPunch {
     fn id(&self) -> &'static str {
-        "wall-indentation"
+        "wall-punch"
     }
     fn description(&self) -> &'static str {
-        "vessel-wall sector (r 4-5 mm) indented by a 1 mm catheter-tip punch BONDED to the inner wall (stand-in for a sphere; sphere contact is verified in sphere-indentation): force, deformed surface"
+        "vessel-wall sector (r 4-5 mm) indented by a 1 mm flat punch BONDED to the inner wall (the linear companion of wall-indentation's sphere): force, deformed surface"
     }
     fn family(&self) -> Family {
         Family::Tissue
     }
     fn params(&self) -> &'static [ParamSpec] {
-        WALL_PARAMS
+        PUNCH_PARAMS
     }
     fn reference(&self) -> &'static str {
-        "scikit-fem P2, LINEAR elasticity, bonded flat punch (datasets/reference/wall-indentation); the sphere in unilateral contact is `sphere-indentation` (Hertz), not yet on this wall"
+        "scikit-fem P2, LINEAR elasticity, bonded flat punch (datasets/reference/wall-punch)"
     }
     fn primary_error(&self) -> &'static str {
         "force_error_rel"
@@ -1388,11 +1840,11 @@ impl Scenario for WallIndentation {
     }
     fn instantiate_at(&self, p: &Params, fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
         let level = mesh_level(self.id(), fidelity)?;
-        let r = WallReference::load(&datasets_dir())?;
+        let r = PunchReference::load(&datasets_dir())?;
         let (depth, e) = (p.get("depth"), p.get("youngs_modulus"));
         let force_ref = r.force(depth, e).filter(|f| *f > 0.0).ok_or_else(|| {
             UsageError(format!(
-                "wall-indentation: depth {depth} m is outside the reference's (0, {}] m",
+                "wall-punch: depth {depth} m is outside the reference's (0, {}] m",
                 r.max_depth()
             ))
         })?;
@@ -1400,7 +1852,7 @@ impl Scenario for WallIndentation {
         let foot = wall_footprint(&r, &mesh);
         if foot.is_empty() {
             return Err(UsageError(format!(
-                "wall-indentation: no node of mesh level {level} lies in the punch footprint"
+                "wall-punch: no node of mesh level {level} lies in the punch footprint"
             )));
         }
         let mut body = TissueBody::new(mesh.clone(), material(p, r.poisson_ratio));
@@ -1418,7 +1870,7 @@ impl Scenario for WallIndentation {
                 (e, w, u * depth)
             })
             .collect();
-        Ok(Box::new(WallRun {
+        Ok(Box::new(PunchRun {
             scene: static_scene(self.id(), body, p)?,
             mesh,
             depth,
