@@ -18,7 +18,8 @@
 //! * [`solve_static`]: quasi-static equilibrium for verification scenes;
 //! * [`FemFactory`]: the `fem` model for the harness ([`surgbench_core::ModelFactory`]);
 //! * [`SphereContact`]: frictionless penalty contact with a rigid sphere
-//!   (`TissueBody::indenter`), in the quasi-static integrator;
+//!   (`TissueBody::indenter`), in the quasi-static, Newmark and backward
+//!   Euler integrators;
 //! * [`error_norms`]: L2 and H1-seminorm errors against a smooth field
 //!   (manufactured solutions).
 
