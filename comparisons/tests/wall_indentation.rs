@@ -3,28 +3,19 @@
 //! clamps, rollers, sphere), scoring of fields whose errors are known, and
 //! the `fem` model converging towards the reference with the mesh level.
 
+mod common;
+use common::{body, level, observe};
 use std::path::Path;
 use surgbench_comparisons::registry;
 use surgbench_comparisons::runner::{RunOptions, run_single};
-use surgbench_comparisons::scenario::{Params, Scenario, ScenarioRun};
+use surgbench_comparisons::scenario::{Params, Scenario};
 use surgbench_comparisons::scenarios::tissue::{self, WallIndentation, WallReference};
 use surgbench_comparisons::scenarios::vessel::datasets_dir;
-use surgbench_core::{Fidelity, Observation, TissueBody, TissueObs, Vec3};
+use surgbench_core::Vec3;
 
 fn params(overrides: &[(&str, f64)]) -> Params {
     let o: Vec<(String, f64)> = overrides.iter().map(|(k, v)| (k.to_string(), *v)).collect();
     Params::resolve("wall-indentation", WallIndentation.params(), &o).unwrap()
-}
-
-fn level(l: usize) -> Fidelity {
-    Fidelity {
-        mesh_level: Some(l),
-        ..Default::default()
-    }
-}
-
-fn body(run: &dyn ScenarioRun) -> &TissueBody {
-    run.scene().tissues().next().expect("one tissue body")
 }
 
 fn reference() -> WallReference {
@@ -39,24 +30,6 @@ fn provenance(key: &str) -> f64 {
         .as_float()
         .or_else(|| t[key].as_integer().map(|i| i as f64))
         .unwrap()
-}
-
-/// An observation with nodes at `rest + u(rest)` and the given hand force.
-fn observe(run: &dyn ScenarioRun, t: f64, hand_force: Vec3, u: impl Fn(&Vec3) -> Vec3) -> Observation {
-    let rest = body(run).mesh.nodes.clone();
-    let nodes = rest.iter().map(|x| x + u(x)).collect();
-    Observation {
-        time: t,
-        tissues: vec![TissueObs {
-            velocities: vec![Vec3::zeros(); rest.len()],
-            rest,
-            nodes,
-            volume_error: 0.0,
-            inverted: 0,
-        }],
-        hand_force,
-        ..Default::default()
-    }
 }
 
 /// The load error after `edit(file name, text)` on a copy of the reference.

@@ -208,6 +208,45 @@ fn common_metrics(m: &mut BTreeMap<String, f64>, mesh: &TetMesh, t: &TissueObs) 
     m.insert("inverted_elements".into(), v.inverted as f64);
 }
 
+/// The force scores every indentation scene carries: the model's force `f`
+/// against the reference `f_ref` (N).
+fn force_metrics(m: &mut BTreeMap<String, f64>, f: f64, f_ref: f64) {
+    m.insert("reaction_force_n".into(), f);
+    m.insert("reference_force_n".into(), f_ref);
+    m.insert("force_error_rel".into(), (f - f_ref).abs() / f_ref);
+    m.insert("force_ratio".into(), f / f_ref);
+}
+
+/// Rollers on symmetry planes: every node of `mesh` not in `fixed` whose
+/// `held(x)` holds any axis, with those axes.
+fn rollers(mesh: &TetMesh, fixed: &[usize], held: impl Fn(&Vec3) -> [bool; 3]) -> Vec<(usize, [bool; 3])> {
+    let fixed: HashSet<usize> = fixed.iter().copied().collect();
+    (0..mesh.nodes.len())
+        .filter(|i| !fixed.contains(i))
+        .map(|i| (i, held(&mesh.nodes[i])))
+        .filter(|(_, a)| a.iter().any(|&b| b))
+        .collect()
+}
+
+/// Where the scene's sphere is at time `t` (m): its path at the control
+/// timeline's load factor.
+fn indenter_centre(scene: &Scene, t: f64) -> Option<Vec3> {
+    let s = scene.control.command_at(t).insertion;
+    scene.tissues().next()?.indenter.map(|i| i.centre_at(s))
+}
+
+/// Sweep of the sphere-contact scenes: mesh levels 0-3 with
+/// [`SPHERE_DT`] (8 quasi-static load steps over the default ramp).
+fn contact_sweep() -> Vec<Fidelity> {
+    (0..=MAX_LEVEL)
+        .map(|l| Fidelity {
+            mesh_level: Some(l),
+            dt: Some(SPHERE_DT),
+            ..Default::default()
+        })
+        .collect()
+}
+
 fn material(p: &Params, nu: f64) -> SolidMaterial {
     SolidMaterial {
         youngs_modulus: p.get("youngs_modulus"),
@@ -1353,10 +1392,6 @@ impl WallSphereRun {
     fn force(obs: &Observation) -> f64 {
         -4.0 * obs.hand_force.x
     }
-    fn centre(&self, t: f64) -> Option<Vec3> {
-        let s = self.scene.control.command_at(t).insertion;
-        self.scene.tissues().next()?.indenter.map(|i| i.centre_at(s))
-    }
 }
 
 impl ScenarioRun for WallSphereRun {
@@ -1365,14 +1400,11 @@ impl ScenarioRun for WallSphereRun {
     }
     fn score(&self, obs: &Observation) -> BTreeMap<String, f64> {
         let mut m = BTreeMap::new();
-        let (Some(t), Some(c)) = (tissue_of(obs, &self.mesh), self.centre(obs.time)) else {
+        let (Some(t), Some(c)) = (tissue_of(obs, &self.mesh), indenter_centre(&self.scene, obs.time)) else {
             return m;
         };
         let f = Self::force(obs);
-        m.insert("reaction_force_n".into(), f);
-        m.insert("reference_force_n".into(), self.force_ref);
-        m.insert("force_error_rel".into(), (f - self.force_ref).abs() / self.force_ref);
-        m.insert("force_ratio".into(), f / self.force_ref);
+        force_metrics(&mut m, f, self.force_ref);
         let (mut pen, mut extent) = (0.0f64, 0.0f64);
         let zc = 0.5 * self.reference.length;
         for &i in &self.inner {
@@ -1445,13 +1477,7 @@ impl Scenario for WallIndentation {
     /// Mesh levels 0-3 with 8 quasi-static load steps over the default ramp
     /// ([`SPHERE_DT`]).
     fn sweep(&self) -> Vec<Fidelity> {
-        (0..=MAX_LEVEL)
-            .map(|l| Fidelity {
-                mesh_level: Some(l),
-                dt: Some(SPHERE_DT),
-                ..Default::default()
-            })
-            .collect()
+        contact_sweep()
     }
     fn quick_sweep(&self) -> Vec<Fidelity> {
         self.sweep().into_iter().take(2).collect()
@@ -1473,15 +1499,9 @@ impl Scenario for WallIndentation {
         let tol = 1e-9 * r.outer_radius;
         let mut body = TissueBody::new(mesh.clone(), material(p, r.poisson_ratio));
         body.fixed_nodes = mesh::nodes_where(&mesh, |x| x.y.atan2(x.x) >= half_angle - 1e-9 || x.z >= r.length - tol);
-        let fixed: HashSet<usize> = body.fixed_nodes.iter().copied().collect();
-        body.partial_fixed = mesh::nodes_where(&mesh, |x| x.y <= tol || (x.z - zc).abs() <= tol)
-            .into_iter()
-            .filter(|i| !fixed.contains(i))
-            .map(|i| {
-                let x = mesh.nodes[i];
-                (i, [false, x.y <= tol, (x.z - zc).abs() <= tol])
-            })
-            .collect();
+        body.partial_fixed = rollers(&mesh, &body.fixed_nodes, |x| {
+            [false, x.y <= tol, (x.z - zc).abs() <= tol]
+        });
         body.indenter = Some(surgbench_core::scene::SphereIndenter {
             centre: Vec3::new(a - r.tip_radius, 0.0, zc),
             radius: r.tip_radius,
@@ -1774,10 +1794,7 @@ impl ScenarioRun for PunchRun {
             return m;
         };
         let f = Self::force(obs);
-        m.insert("reaction_force_n".into(), f);
-        m.insert("reference_force_n".into(), self.force_ref);
-        m.insert("force_error_rel".into(), (f - self.force_ref).abs() / self.force_ref);
-        m.insert("force_ratio".into(), f / self.force_ref);
+        force_metrics(&mut m, f, self.force_ref);
         m.insert("stiffness_n_per_m".into(), f / self.depth);
         m.insert("lateral_force_rel".into(), obs.hand_force.yz().norm() / self.force_ref);
         let (mut e2, mut r2, mut emax) = (0.0, 0.0, 0.0f64);
@@ -2071,13 +2088,6 @@ impl SphereRun {
     fn force(obs: &Observation) -> f64 {
         4.0 * obs.hand_force.z
     }
-    fn centre(&self, t: f64) -> Option<Vec3> {
-        let s = self.scene.control.command_at(t).insertion;
-        let Body::Tissue(b) = &self.scene.bodies[0] else {
-            return None;
-        };
-        b.indenter.map(|i| i.centre_at(s))
-    }
 }
 
 impl ScenarioRun for SphereRun {
@@ -2089,14 +2099,11 @@ impl ScenarioRun for SphereRun {
         let Some(t) = tissue_of(obs, &self.mesh) else {
             return m;
         };
-        let Some(c) = self.centre(obs.time) else {
+        let Some(c) = indenter_centre(&self.scene, obs.time) else {
             return m;
         };
         let f = Self::force(obs);
-        m.insert("reaction_force_n".into(), f);
-        m.insert("reference_force_n".into(), self.force_ref);
-        m.insert("force_error_rel".into(), (f - self.force_ref).abs() / self.force_ref);
-        m.insert("force_ratio".into(), f / self.force_ref);
+        force_metrics(&mut m, f, self.force_ref);
         m.insert("paraboloid_bias_rel".into(), self.paraboloid_bias);
         let pen = self
             .top
@@ -2170,13 +2177,7 @@ impl Scenario for SphereIndentation {
     /// (`dt = ramp / 8`). Level 3 (32^3 cells) costs `fem` about 10 min and
     /// 2 GB per run (2 cores): the comparisons' TOML sweeps stop at 2.
     fn sweep(&self) -> Vec<Fidelity> {
-        (0..=MAX_LEVEL)
-            .map(|l| Fidelity {
-                mesh_level: Some(l),
-                dt: Some(SPHERE_DT),
-                ..Default::default()
-            })
-            .collect()
+        contact_sweep()
     }
     fn quick_sweep(&self) -> Vec<Fidelity> {
         self.sweep().into_iter().take(2).collect()
@@ -2202,15 +2203,9 @@ impl Scenario for SphereIndentation {
         let tol = 1e-9 * w;
         let mut body = TissueBody::new(mesh.clone(), material(p, nu));
         body.fixed_nodes = mesh::nodes_on_plane(&mesh, 2, -w, tol);
-        let fixed: HashSet<usize> = body.fixed_nodes.iter().copied().collect();
-        body.partial_fixed = mesh::nodes_where(&mesh, |x| x.x.abs() <= tol || x.y.abs() <= tol)
-            .into_iter()
-            .filter(|i| !fixed.contains(i))
-            .map(|i| {
-                let x = mesh.nodes[i];
-                (i, [x.x.abs() <= tol, x.y.abs() <= tol, false])
-            })
-            .collect();
+        body.partial_fixed = rollers(&mesh, &body.fixed_nodes, |x| {
+            [x.x.abs() <= tol, x.y.abs() <= tol, false]
+        });
         body.indenter = Some(surgbench_core::scene::SphereIndenter {
             centre: Vec3::new(0.0, 0.0, radius),
             radius,
