@@ -95,6 +95,10 @@ pub struct DynParams {
     pub factor_reuse: bool,
     /// Relative residual of that CG (default [`REUSE_TOL`]).
     pub reuse_tol: f64,
+    /// That CG applies an `f32` copy of the stale factor
+    /// ([`System::set_single_precision_preconditioner`]); the CG stays in
+    /// `f64` and reaches the same `reuse_tol`.
+    pub reuse_f32: bool,
     /// Rayleigh mass coefficient `alpha` (1/s).
     pub rayleigh_mass: f64,
     /// Rayleigh stiffness coefficient `beta` (s).
@@ -119,6 +123,7 @@ impl Default for DynParams {
             lazy_threshold: 0.0,
             factor_reuse: true,
             reuse_tol: REUSE_TOL,
+            reuse_f32: false,
             rayleigh_mass: 0.0,
             rayleigh_stiffness: 0.0,
             iterations: 1,
@@ -217,7 +222,8 @@ impl FemModel {
         let (free, uc) = dof_conditions(n, &cons)?;
         let rho = body.material.density;
         let gravity_load = solid.body_loads(&move |_: &Vec3| gravity * rho);
-        let sys = System::new(&solid.pat, free);
+        let mut sys = System::new(&solid.pat, free);
+        sys.set_single_precision_preconditioner(p.reuse_f32);
         let x = solid.rest.clone();
         let contact = match &body.indenter {
             None => None,
@@ -733,7 +739,7 @@ const KEYS: &[FidelityKey] = &[
     },
     FidelityKey {
         name: "ordering",
-        doc: "Cholesky fill ordering: 0 AMD (default), 1 reverse Cuthill-McKee",
+        doc: "Cholesky fill ordering: 0 AMD (default), 1 reverse Cuthill-McKee, 2 geometric nested dissection",
     },
     FidelityKey {
         name: "cg_tol",
@@ -746,6 +752,10 @@ const KEYS: &[FidelityKey] = &[
     FidelityKey {
         name: "reuse_tol",
         doc: "Cholesky with factor_reuse: relative residual of the stale-factor PCG (default 1e-6)",
+    },
+    FidelityKey {
+        name: "reuse_f32",
+        doc: "Cholesky with factor_reuse: 1 = the stale-factor PCG applies an f32 copy of the factor (CG in f64, same tolerance), 0 (default) = the f64 factor",
     },
     FidelityKey {
         name: "lazy_threshold",
@@ -792,10 +802,10 @@ impl FemFactory {
             1 => Integrator::BackwardEuler,
             _ => Integrator::QuasiStatic,
         };
-        let ordering = if code("ordering", 1.0)? == 1.0 {
-            Ordering::Rcm
-        } else {
-            Ordering::Amd
+        let ordering = match code("ordering", 2.0)? as usize {
+            1 => Ordering::Rcm,
+            2 => Ordering::NestedDissection,
+            _ => Ordering::Amd,
         };
         let cg_tol = full.extra("cg_tol", 1e-8);
         if !(cg_tol > 0.0 && cg_tol < 1.0) {
@@ -821,6 +831,11 @@ impl FemFactory {
             0.0 => false,
             1.0 => true,
             v => return Err(BuildError::bad("factor_reuse", format!("must be 0 or 1, got {v}"))),
+        };
+        let reuse_f32 = match full.extra("reuse_f32", 0.0) {
+            0.0 => false,
+            1.0 => true,
+            v => return Err(BuildError::bad("reuse_f32", format!("must be 0 or 1, got {v}"))),
         };
         let reuse_tol = full.extra("reuse_tol", REUSE_TOL);
         if !(reuse_tol > 0.0 && reuse_tol < 1.0) {
@@ -857,6 +872,7 @@ impl FemFactory {
             lazy_threshold: nonneg("lazy_threshold")?,
             factor_reuse,
             reuse_tol,
+            reuse_f32,
             rayleigh_mass: nonneg("rayleigh_mass")?,
             rayleigh_stiffness: nonneg("rayleigh_stiffness")?,
             iterations: full.iterations.unwrap_or(1),
