@@ -12,6 +12,7 @@
 
 use crate::element::UPPER;
 use crate::material::M3;
+use crate::supernodal::SplitSolve;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{
@@ -361,6 +362,9 @@ struct CholState {
     l32: Vec<f32>,
     /// Single-precision right-hand side buffer.
     rhs32: Vec<f32>,
+    /// The two-way cut of the supernodal factor for the `f32` solves
+    /// (`None` for a simplicial factor: faer's solve).
+    split: Option<SplitSolve>,
 }
 
 impl System {
@@ -559,7 +563,6 @@ impl System {
             let mem = MemBuffer::try_new(req).map_err(|_| "out of memory for Cholesky workspace".to_string())?;
             let l = vec![0.0; symbolic.len_val()];
             self.chol = Some(CholState {
-                symbolic,
                 l,
                 mem,
                 valid: false,
@@ -567,6 +570,8 @@ impl System {
                 par: Par::Seq,
                 l32: Vec::new(),
                 rhs32: vec![0.0; self.dofs.len()],
+                split: SplitSolve::new(&symbolic, &self.dofs),
+                symbolic,
             });
         }
         let par = self.par();
@@ -684,6 +689,9 @@ impl CholState {
     fn solve_precond(&mut self, dofs: &[usize], r: &[f64], z: &mut [f64]) {
         if self.l32.is_empty() {
             return self.solve_full(dofs, r, z);
+        }
+        if let Some(split) = &mut self.split {
+            return split.solve(&self.l32, r, z);
         }
         let rhs = &mut self.rhs32;
         for (v, &d) in rhs.iter_mut().zip(dofs) {
