@@ -42,7 +42,6 @@ fn main() {
     let (dt, alpha) = (1e-3, 5.0);
     let c_m = 4.0 / (dt * dt) + alpha * 2.0 / dt;
     let mut sys = System::new(&solid.pat, free);
-    sys.set_threads(threads);
     sys.set_values(&solid.pat, &solid.kmat, 1.0, &solid.mass, c_m);
     let t0 = Instant::now();
     for _ in 0..nfact {
@@ -80,9 +79,10 @@ fn main() {
         *ms = t0.elapsed().as_secs_f64() * 1e3 / nsolve.max(1) as f64;
     }
     println!(
-        "{ordering:?} threads {threads}: free DOFs {}, factor nnz {:?}, {fact_ms:.2} ms/factorization, {solve_ms:.3} ms/solve, PCG preconditioner + product f64 {:.3} / f32 {:.3} ms, solution hash {hash:016x}",
+        "{ordering:?} threads {threads}: free DOFs {}, factor nnz {:?} (f32 cut: bins and top {:?}), {fact_ms:.2} ms/factorization, {solve_ms:.3} ms/solve, PCG preconditioner + product f64 {:.3} / f32 {:.3} ms, solution hash {hash:016x}",
         sys.n_free(),
         sys.factor_nnz(),
+        sys.split_values(),
         pre_ms[0],
         pre_ms[1]
     );

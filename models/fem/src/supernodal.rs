@@ -55,6 +55,8 @@ struct Part {
 pub struct SplitSolve {
     top: Part,
     bins: [Part; 2],
+    /// Factor values in bin 0, bin 1 and the top.
+    pub values: [usize; 3],
 }
 
 impl SplitSolve {
@@ -90,29 +92,42 @@ impl SplitSolve {
                 work[snode_of[r]] += work[s];
             }
         }
-        // Move the largest subtree's root into the top until no subtree
-        // holds more than 60 % of the subtrees' total.
+        // Move the largest subtree's root into the top, one at a time, and
+        // keep the cut with the shortest critical path (top plus the
+        // heavier bin); stop once the top holds half the factor.
+        let deal = |subtrees: &[usize]| -> ([usize; 2], Vec<(usize, usize)>) {
+            let mut order = subtrees.to_vec();
+            order.sort_by_key(|&s| (std::cmp::Reverse(work[s]), s));
+            let mut load = [0usize; 2];
+            let mut assign = Vec::with_capacity(order.len());
+            for s in order {
+                let b = usize::from(load[1] < load[0]);
+                load[b] += work[s];
+                assign.push((s, b));
+            }
+            (load, assign)
+        };
+        let all: usize = roots.iter().map(|&s| work[s]).sum();
         let mut subtrees = roots;
-        let mut top = Vec::new();
-        loop {
-            let total: usize = subtrees.iter().map(|&s| work[s]).sum();
+        let mut top: Vec<usize> = Vec::new();
+        let mut top_work = 0;
+        let mut best = (usize::MAX, 0, Vec::new());
+        while 2 * top_work <= all {
+            let (load, assign) = deal(&subtrees);
+            let path = top_work + load[0].max(load[1]);
+            if path < best.0 {
+                best = (path, top.len(), assign);
+            }
             let Some((k, &big)) = subtrees.iter().enumerate().max_by_key(|&(_, &s)| (work[s], s)) else {
                 break;
             };
-            if subtrees.len() >= 2 && 10 * work[big] <= 6 * total {
-                break;
-            }
             subtrees.swap_remove(k);
             top.push(big);
+            top_work += work[big] - children[big].iter().map(|&c| work[c]).sum::<usize>();
             subtrees.extend(&children[big]);
         }
-        // Deal the subtrees into two bins, largest first into the lighter.
-        subtrees.sort_by_key(|&s| (std::cmp::Reverse(work[s]), s));
         let mut owner = vec![2u8; ns];
-        let mut load = [0usize; 2];
-        for &root in &subtrees {
-            let b = usize::from(load[1] < load[0]);
-            load[b] += work[root];
+        for (root, b) in best.2 {
             let mut stack = vec![root];
             while let Some(s) = stack.pop() {
                 owner[s] = b as u8;
@@ -165,13 +180,21 @@ impl SplitSolve {
         let top = parts.pop().expect("three parts");
         let b1 = parts.pop().expect("three parts");
         let b0 = parts.pop().expect("three parts");
-        Some(Self { top, bins: [b0, b1] })
+        let mut values = [0; 3];
+        for s in 0..ns {
+            values[owner[s] as usize] += val_ptr[s + 1] - val_ptr[s];
+        }
+        Some(Self {
+            top,
+            bins: [b0, b1],
+            values,
+        })
     }
 
     /// `z = A_0^-1 r` with the `f32` factor values `l` (faer's supernodal
     /// layout): `r`, `z` full DOF vectors, `z`'s constrained entries untouched.
     pub fn solve(&mut self, l: &[f32], r: &[f64], z: &mut [f64]) {
-        let Self { top, bins } = self;
+        let Self { top, bins, .. } = self;
         let [b0, b1] = bins;
         let forward_bin = |p: &mut Part| {
             let n_own = p.src.len();
