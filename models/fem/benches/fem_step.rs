@@ -25,7 +25,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use std::time::Duration;
 use surgbench_core::Vec3;
 use surgbench_fem::bench_support::bench_block;
-use surgbench_fem::{DynParams, FemModel, LinearSolver, REUSE_TOL};
+use surgbench_fem::{DynParams, FemModel, LinearSolver, Ordering, REUSE_TOL};
 
 fn bench(c: &mut Criterion) {
     let b = bench_block();
@@ -34,21 +34,27 @@ fn bench(c: &mut Criterion) {
         .measurement_time(Duration::from_secs(4))
         .warm_up_time(Duration::from_secs(1));
     let cg = |tol: f64| LinearSolver::Cg { tol, max_iter: 500 };
+    // Default: nested dissection, f32 two-way preconditioner.
     let chol = LinearSolver::default();
+    let amd = LinearSolver::Cholesky(Ordering::Amd);
     let cases = [
-        ("cholesky_reuse", chol, 0.05, true),
-        ("cholesky_pcg", chol, 0.0, true),
-        ("cholesky_refactor", chol, 0.0, false),
-        ("cholesky_pcg_tol1e-4", chol, 0.0, true),
-        ("cg", cg(1e-6), 0.0, true),
-        ("cg_tol1e-4", cg(1e-4), 0.0, true),
+        ("cholesky_reuse", chol, 0.05, true, true),
+        ("cholesky_pcg", chol, 0.0, true, true),
+        ("cholesky_pcg_f64", chol, 0.0, true, false),
+        ("cholesky_pcg_amd_f64", amd, 0.0, true, false),
+        ("cholesky_refactor", chol, 0.0, false, true),
+        ("cholesky_refactor_amd", amd, 0.0, false, true),
+        ("cholesky_pcg_tol1e-4", chol, 0.0, true, true),
+        ("cg", cg(1e-6), 0.0, true, true),
+        ("cg_tol1e-4", cg(1e-4), 0.0, true, true),
     ];
     for threads in [1, 2] {
-        for (name, solver, lazy, factor_reuse) in cases {
+        for (name, solver, lazy, factor_reuse, reuse_f32) in cases {
             let p = DynParams {
                 solver,
                 lazy_threshold: lazy,
                 factor_reuse,
+                reuse_f32,
                 reuse_tol: if name.ends_with("tol1e-4") { 1e-4 } else { REUSE_TOL },
                 rayleigh_mass: 5.0,
                 threads,

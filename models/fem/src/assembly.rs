@@ -9,6 +9,16 @@
 //! faer's sparse Cholesky (symbolic analysis once, numeric refactorization
 //! without allocation, reused while the matrix does not change), or with a
 //! block-Jacobi preconditioned conjugate gradient on the block CSR matrix.
+//!
+//! faer's numeric factorization and triangular solves run with `Par::Seq`:
+//! faer 0.24's supernodal code loops over the supernodes in sequence and
+//! hands `Par` only to each supernode's dense kernels. Measured on the
+//! bench block (examples/factor_cost.rs) `Par::rayon(2)` gave no
+//! measurable gain in either, and its results differ in round-off from
+//! `Par::Seq`, which would break the bit-identity across thread counts.
+//! The parallel piece is instead the `f32` preconditioner solve of the
+//! stale-factor PCG ([`crate::supernodal`]), which is thread-count
+//! independent by construction.
 
 use crate::element::UPPER;
 use crate::material::M3;

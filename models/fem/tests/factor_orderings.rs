@@ -43,9 +43,8 @@ fn nested_dissection_is_a_permutation() {
 }
 
 /// The bench block's Newmark matrix `c_m M + K` (dt = 1 ms, Rayleigh
-/// alpha = 5/s) factorized with `ordering`: factor non-zeros and the
-/// solution of a fixed right-hand side.
-fn factor_and_solve(ordering: Ordering) -> (usize, Vec<f64>) {
+/// alpha = 5/s), factorized with `ordering`, and a fixed right-hand side.
+fn bench_system(ordering: Ordering, single: bool) -> (Solid, System, f64, Vec<f64>) {
     let b = bench_block();
     let mut solid = Solid::new(&b.mesh, &b.material, Law::Corotational, 1).expect("solid");
     let n = solid.n_nodes();
@@ -57,11 +56,53 @@ fn factor_and_solve(ordering: Ordering) -> (usize, Vec<f64>) {
     solid.evaluate(&rest, Some(Jacobian::Warped), 0.0);
     let c_m = 4.0 / (1e-3 * 1e-3) + 5.0 * 2.0 / 1e-3;
     let mut sys = System::new(&solid.pat, free);
+    sys.set_single_precision_preconditioner(single);
     sys.set_values(&solid.pat, &solid.kmat, 1.0, &solid.mass, c_m);
     sys.factorize(&solid.pat, ordering).expect("positive definite");
-    let mut x: Vec<f64> = (0..3 * n).map(|i| ((i * 7919) % 1000) as f64 * 1e-3 - 0.5).collect();
+    let b: Vec<f64> = (0..3 * n).map(|i| ((i * 7919) % 1000) as f64 * 1e-3 - 0.5).collect();
+    (solid, sys, c_m, b)
+}
+
+/// Factor non-zeros and the direct (f64) solution of the fixed right-hand side.
+fn factor_and_solve(ordering: Ordering) -> (usize, Vec<f64>) {
+    let (_, mut sys, _, mut x) = bench_system(ordering, false);
     sys.solve_cholesky(&mut x);
     (sys.factor_nnz().expect("factorized"), x)
+}
+
+#[test]
+fn f32_split_solve_preconditions_its_own_matrix_almost_exactly() {
+    let (_, mut sys, _, mut x_ref) = bench_system(Ordering::NestedDissection, true);
+    let [b0, b1, top] = sys.split_values().expect("faer chose a supernodal factor");
+    let nnz = sys.factor_nnz().expect("factorized");
+    assert_eq!(b0 + b1 + top, nnz, "the cut covers the factor once");
+    assert!(b0 > 0 && b1 > 0, "both bins have work: {b0}, {b1}, top {top}");
+    let b = x_ref.clone();
+    sys.solve_cholesky(&mut x_ref);
+    for threads in [1, 2] {
+        let (solid, mut sys, c_m, _) = bench_system(Ordering::NestedDissection, true);
+        let mut x = vec![0.0; b.len()];
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool");
+        let (it, rel) = pool
+            .install(|| sys.solve_factor_pcg(&solid.pat, &solid.kmat, 1.0, &solid.mass, c_m, &b, &mut x, 1e-10, 10))
+            .expect("factorized");
+        // The preconditioner is this matrix's own factor rounded to f32:
+        // `M^-1 A = I + E` with `|E|` of order cond(A) * 6e-8, so each CG
+        // iteration gains about six digits and 1e-10 takes two; a wrong
+        // split solve (a missed update between bins and top) stalls.
+        assert!(it <= 2 && rel <= 1e-10, "{threads} threads: {it} iterations to {rel:e}");
+        let scale = x_ref.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let diff = x.iter().zip(&x_ref).fold(0.0f64, |m, (a, c)| m.max((a - c).abs()));
+        // Residual 1e-10 relative: the solution error is at most
+        // cond(A) * 1e-10, far below 1e-8 for this mass-dominated matrix.
+        assert!(
+            diff <= 1e-8 * scale,
+            "{threads} threads: x differs from the f64 solve by {diff:e}"
+        );
+    }
 }
 
 #[test]
