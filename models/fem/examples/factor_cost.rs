@@ -2,7 +2,10 @@
 //! `c_m M + K` (12,960 tets / 2,704 nodes, bottom fixed, top driven,
 //! `dt = 1 ms`, Rayleigh `alpha = 5/s`, warped stiffness at rest): factor
 //! non-zeros, and wall time per numeric factorization and per
-//! forward/backward solve, for one fill ordering and thread count.
+//! forward/backward solve (faer, `f64`, sequential), and per application
+//! of the stale-factor PCG's preconditioner with the `f64` factor and with
+//! the `f32` copy solved two-way parallel ([`surgbench_fem::supernodal`];
+//! `threads` is the size of the rayon pool it runs in).
 //!
 //! `cargo run --release -p surgbench-fem --example factor_cost -- [amd|rcm|nd] [threads] [factorizations] [solves] [f64|f32]`
 //!
