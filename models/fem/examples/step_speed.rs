@@ -14,7 +14,7 @@
 use std::time::Instant;
 use surgbench_core::{TissueBody, Vec3};
 use surgbench_fem::bench_support::bench_block;
-use surgbench_fem::{DynParams, FemModel, LinearSolver};
+use surgbench_fem::{DynParams, FemModel, LinearSolver, Ordering};
 
 struct Run {
     traj: Vec<Vec<Vec3>>,
@@ -86,6 +86,17 @@ fn main() {
         reuse_tol,
         ..base
     };
+    // Nested-dissection ordering, optionally with the f32 preconditioner.
+    let nd = |p: DynParams, f32: bool| DynParams {
+        solver: LinearSolver::Cholesky(Ordering::NestedDissection),
+        reuse_f32: f32,
+        ..p
+    };
+    let amd = |p: DynParams, f32: bool| DynParams {
+        solver: LinearSolver::Cholesky(Ordering::Amd),
+        reuse_f32: f32,
+        ..p
+    };
     let cgp = |tol: f64, lazy: f64| DynParams {
         solver: cg(tol),
         lazy_threshold: lazy,
@@ -98,6 +109,15 @@ fn main() {
             DynParams { iterations: 3, ..base },
         ),
         ("cholesky, stale-factor PCG, lazy 0", chol(0.0, true)),
+        ("amd, refactor every step", amd(base, false)),
+        ("amd, stale-factor PCG, lazy 0", amd(chol(0.0, true), false)),
+        ("amd, stale-factor PCG f32, lazy 0", amd(chol(0.0, true), true)),
+        ("amd, stale-factor PCG f32, lazy 0.05", amd(chol(0.05, true), true)),
+        ("nd, refactor every step", nd(base, false)),
+        ("nd, stale-factor PCG, lazy 0", nd(chol(0.0, true), false)),
+        ("nd, stale-factor PCG f32, lazy 0", nd(chol(0.0, true), true)),
+        ("nd, stale-factor PCG, lazy 0.05", nd(chol(0.05, true), false)),
+        ("nd, stale-factor PCG f32, lazy 0.05", nd(chol(0.05, true), true)),
         ("cholesky, stale-factor PCG, lazy 0.01", chol(0.01, true)),
         ("cholesky, refactor on change, lazy 0.05", chol(0.05, false)),
         ("cholesky, stale-factor PCG, lazy 0.05", chol(0.05, true)),

@@ -9,9 +9,20 @@
 //! faer's sparse Cholesky (symbolic analysis once, numeric refactorization
 //! without allocation, reused while the matrix does not change), or with a
 //! block-Jacobi preconditioned conjugate gradient on the block CSR matrix.
+//!
+//! faer's numeric factorization and triangular solves run with `Par::Seq`:
+//! faer 0.24's supernodal code loops over the supernodes in sequence and
+//! hands `Par` only to each supernode's dense kernels. Measured on the
+//! bench block (examples/factor_cost.rs) `Par::rayon(2)` gave no
+//! measurable gain in either, and its results differ in round-off from
+//! `Par::Seq`, which would break the bit-identity across thread counts.
+//! The parallel piece is instead the `f32` preconditioner solve of the
+//! stale-factor PCG ([`crate::supernodal`]), which is thread-count
+//! independent by construction.
 
 use crate::element::UPPER;
 use crate::material::M3;
+use crate::supernodal::SplitSolve;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{
@@ -44,11 +55,16 @@ pub struct Pattern {
     node_src: Vec<u32>,
     /// Index of the diagonal block of every row.
     pub diag: Vec<usize>,
+    /// Node coordinates the pattern was built with (m; rest mesh), for the
+    /// geometric [`Pattern::nested_dissection`].
+    coords: Vec<Vec3>,
 }
 
 impl Pattern {
-    /// Build from the tets over `n` nodes.
-    pub fn new(n: usize, tets: &[[usize; 4]]) -> Self {
+    /// Build from the tets over the nodes `coords` (rest positions; only
+    /// [`Pattern::nested_dissection`] reads them).
+    pub fn new(coords: &[Vec3], tets: &[[usize; 4]]) -> Self {
+        let n = coords.len();
         let mut adj: Vec<Vec<usize>> = vec![Vec::new(); n];
         for t in tets {
             for &a in t {
@@ -108,6 +124,7 @@ impl Pattern {
             node_ptr,
             node_src,
             diag,
+            coords: coords.to_vec(),
         }
     }
 
@@ -197,7 +214,85 @@ impl Pattern {
         order.reverse();
         order
     }
+
+    /// Nested-dissection ordering of the node graph (George 1973, "Nested
+    /// dissection of a regular finite element mesh", SIAM J. Numer. Anal.
+    /// 10(2)), with geometric bisection: a node set is split at the median
+    /// coordinate along its longest bounding-box extent into a low side
+    /// (coordinate below the median) and a high side; the separator is the
+    /// nodes of the larger side adjacent to the other side. Both remaining
+    /// parts are ordered recursively, the separator after them, so no
+    /// factor fill couples the two parts. Sets of at most [`ND_LEAF`] nodes
+    /// keep their index order. Returns the nodes in the new order
+    /// (`order[k]` = old node index); deterministic (ties broken by index).
+    pub fn nested_dissection(&self) -> Vec<usize> {
+        let mut order = Vec::with_capacity(self.n);
+        // Side of every node during a split: 0 outside, 1 low, 2 high.
+        let mut side = vec![0u8; self.n];
+        let mut stack: Vec<(Vec<usize>, Option<Vec<usize>>)> = vec![((0..self.n).collect(), None)];
+        // Depth-first with explicit stack: an entry `(set, Some(sep))` means
+        // "set already split; emit sep" after its parts.
+        while let Some((set, sep)) = stack.pop() {
+            if let Some(sep) = sep {
+                order.extend(sep);
+                continue;
+            }
+            if set.len() <= ND_LEAF {
+                order.extend(set);
+                continue;
+            }
+            let (lo, hi) = set.iter().fold(
+                (Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY)),
+                |(lo, hi), &i| (lo.inf(&self.coords[i]), hi.sup(&self.coords[i])),
+            );
+            let ext = hi - lo;
+            let axis = ext.imax();
+            let mut vals: Vec<f64> = set.iter().map(|&i| self.coords[i][axis]).collect();
+            vals.sort_by(f64::total_cmp);
+            let median = vals[vals.len() / 2];
+            let (mut low, mut high): (Vec<usize>, Vec<usize>) =
+                set.iter().partition(|&&i| self.coords[i][axis] < median);
+            if low.is_empty() {
+                // Degenerate extent (all at the median): split by position.
+                let h = set.len() / 2;
+                low = set[..h].to_vec();
+                high = set[h..].to_vec();
+            }
+            for &i in &low {
+                side[i] = 1;
+            }
+            for &i in &high {
+                side[i] = 2;
+            }
+            let (big, other) = if high.len() >= low.len() { (2u8, 1u8) } else { (1, 2) };
+            let touches = |i: usize| {
+                self.col[self.row_ptr[i]..self.row_ptr[i + 1]]
+                    .iter()
+                    .any(|&j| side[j] == other)
+            };
+            let (mut part_a, mut part_b, mut sep) = (Vec::new(), Vec::new(), Vec::new());
+            for &i in &set {
+                if side[i] == big && touches(i) {
+                    sep.push(i);
+                } else if side[i] == 1 {
+                    part_a.push(i);
+                } else {
+                    part_b.push(i);
+                }
+            }
+            for &i in &set {
+                side[i] = 0;
+            }
+            stack.push((Vec::new(), Some(sep)));
+            stack.push((part_b, None));
+            stack.push((part_a, None));
+        }
+        order
+    }
 }
+
+/// Largest node set [`Pattern::nested_dissection`] does not split further.
+pub const ND_LEAF: usize = 8;
 
 /// Which linear solver the Newton steps use.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -221,11 +316,18 @@ pub enum Ordering {
     Amd,
     /// Reverse Cuthill-McKee on the node graph, expanded to DOFs.
     Rcm,
+    /// Geometric nested dissection on the node graph
+    /// ([`Pattern::nested_dissection`]), expanded to DOFs.
+    NestedDissection,
 }
 
+/// Cholesky with nested dissection: on the bench block (12,960 tets) its
+/// factor has 2.27 M non-zeros against AMD's 2.86 M, and a numeric
+/// factorization costs 339 M instructions against 517 M (callgrind,
+/// examples/factor_cost.rs).
 impl Default for LinearSolver {
     fn default() -> Self {
-        LinearSolver::Cholesky(Ordering::Amd)
+        LinearSolver::Cholesky(Ordering::NestedDissection)
     }
 }
 
@@ -253,6 +355,8 @@ pub struct System {
     pub factorizations: usize,
     /// Total CG iterations so far.
     pub cg_iterations: usize,
+    /// Precondition the stale-factor PCG with an f32 copy of the factor.
+    single: bool,
 }
 
 struct CholState {
@@ -262,6 +366,14 @@ struct CholState {
     valid: bool,
     /// Free-DOF right-hand side buffer of the triangular solves.
     rhs: Vec<f64>,
+    /// Single-precision copy of `l` (empty unless
+    /// [`System::set_single_precision_preconditioner`]).
+    l32: Vec<f32>,
+    /// Single-precision right-hand side buffer.
+    rhs32: Vec<f32>,
+    /// The two-way cut of the supernodal factor for the `f32` solves
+    /// (`None` for a simplicial factor: faer's solve).
+    split: Option<SplitSolve>,
 }
 
 impl System {
@@ -310,6 +422,23 @@ impl System {
             jac: Vec::new(),
             factorizations: 0,
             cg_iterations: 0,
+            single: false,
+        }
+    }
+
+    /// Whether the stale-factor PCG ([`System::solve_factor_pcg`]) applies
+    /// an `f32` copy of the Cholesky factor (made after every numeric
+    /// factorization) instead of the `f64` factor. The triangular solves
+    /// read half the bytes and run twice the SIMD lanes; the CG itself
+    /// (residuals, products with `A`, stopping test) stays in `f64`, so it
+    /// reaches the same tolerance: a preconditioner only has to be close
+    /// to `A^-1`, and a stale factor already differs from the current
+    /// matrix by far more than `f32` rounding (about `6e-8` relative).
+    /// Direct solves ([`System::solve_cholesky`]) always use the `f64` factor.
+    pub fn set_single_precision_preconditioner(&mut self, on: bool) {
+        self.single = on;
+        if let Some(c) = &mut self.chol {
+            c.set_single(on);
         }
     }
 
@@ -322,6 +451,12 @@ impl System {
     pub fn free_index(&self, dof: usize) -> Option<usize> {
         let i = self.fidx[dof];
         (i != usize::MAX).then_some(i)
+    }
+
+    /// Factor values in the two bins and the top of the `f32` solve's cut
+    /// ([`crate::supernodal::SplitSolve`]), once analysed.
+    pub fn split_values(&self) -> Option<[usize; 3]> {
+        self.chol.as_ref().and_then(|c| c.split.as_ref()).map(|s| s.values)
     }
 
     /// Non-zeros of the Cholesky factor, once analysed.
@@ -391,9 +526,14 @@ impl System {
             let perm_storage;
             let ord = match ordering {
                 Ordering::Amd => SymmetricOrdering::Amd,
-                Ordering::Rcm => {
+                Ordering::Rcm | Ordering::NestedDissection => {
+                    let nodes = if ordering == Ordering::Rcm {
+                        pat.rcm()
+                    } else {
+                        pat.nested_dissection()
+                    };
                     let mut fwd = Vec::with_capacity(self.n_free());
-                    for node in pat.rcm() {
+                    for node in nodes {
                         for i in 0..3 {
                             if let Some(f) = self.free_index(3 * node + i) {
                                 fwd.push(f);
@@ -417,15 +557,19 @@ impl System {
                     .map_err(|e| format!("symbolic Cholesky failed: {e:?}"))?;
             let req = symbolic
                 .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
-                .or(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
+                .or(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq))
+                .or(symbolic.solve_in_place_scratch::<f32>(1, Par::Seq));
             let mem = MemBuffer::try_new(req).map_err(|_| "out of memory for Cholesky workspace".to_string())?;
             let l = vec![0.0; symbolic.len_val()];
             self.chol = Some(CholState {
-                symbolic,
                 l,
                 mem,
                 valid: false,
                 rhs: vec![0.0; self.dofs.len()],
+                l32: Vec::new(),
+                rhs32: vec![0.0; self.dofs.len()],
+                split: SplitSolve::new(&symbolic, &self.dofs),
+                symbolic,
             });
         }
         let c = self.chol.as_mut().expect("analysed above");
@@ -443,6 +587,7 @@ impl System {
             )
             .map_err(|e| format!("matrix is not positive definite ({e:?})"))?;
         c.valid = true;
+        c.set_single(self.single);
         self.factorizations += 1;
         Ok(())
     }
@@ -525,8 +670,44 @@ impl System {
 }
 
 impl CholState {
+    /// Make (`on`) or drop the `f32` copy of the factor.
+    fn set_single(&mut self, on: bool) {
+        self.l32.clear();
+        if on {
+            self.l32.extend(self.l.iter().map(|&v| v as f32));
+        }
+    }
+
+    /// The preconditioner `z = A_0^-1 r` of the stale-factor PCG: with the
+    /// `f32` copy of the factor when there is one (solve in `f32`, `r`
+    /// rounded to `f32`, `z` widened back), else [`CholState::solve_full`].
+    #[inline(never)]
+    fn solve_precond(&mut self, dofs: &[usize], r: &[f64], z: &mut [f64]) {
+        if self.l32.is_empty() {
+            return self.solve_full(dofs, r, z);
+        }
+        if let Some(split) = &mut self.split {
+            return split.solve(&self.l32, r, z);
+        }
+        let rhs = &mut self.rhs32;
+        for (v, &d) in rhs.iter_mut().zip(dofs) {
+            *v = r[d] as f32;
+        }
+        let n = rhs.len();
+        LltRef::new(&self.symbolic, &self.l32).solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(rhs, n, 1),
+            Par::Seq,
+            MemStack::new(&mut self.mem),
+        );
+        for (v, &d) in rhs.iter().zip(dofs) {
+            z[d] = f64::from(*v);
+        }
+    }
+
     /// `z = A_0^-1 r` on the free DOFs with the cached factor (`r`, `z` full
     /// DOF vectors; `z`'s constrained entries are left untouched).
+    #[inline(never)]
     fn solve_full(&mut self, dofs: &[usize], r: &[f64], z: &mut [f64]) {
         let rhs = &mut self.rhs;
         for (v, &d) in rhs.iter_mut().zip(dofs) {
@@ -706,7 +887,7 @@ fn pcg(op: &Op, mut pre: Precond, w: &mut CgWork, b: &[f64], x: &mut [f64], tol:
                 jacobi_sums(jac, mask, r, z, part);
             }
             Precond::Factor { chol, dofs } => {
-                chol.solve_full(dofs, r, z);
+                chol.solve_precond(dofs, r, z);
                 chunk_sums(r, z, part);
             }
         }

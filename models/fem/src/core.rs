@@ -85,7 +85,7 @@ impl Solid {
             return Err(FemError::BadInput("mesh has no tets".into()));
         }
         let elems = Elements::new(mesh).map_err(FemError::BadInput)?;
-        let pat = Pattern::new(mesh.nodes.len(), &mesh.tets);
+        let pat = Pattern::new(&mesh.nodes, &mesh.tets);
         let mat = Material::new(law, m.youngs_modulus, m.poisson_ratio);
         let mut mass = vec![0.0; mesh.nodes.len()];
         for (e, t) in mesh.tets.iter().enumerate() {

@@ -29,7 +29,10 @@
 //!   is refactorized on the next step once those CG solves have cost about
 //!   one factorization more than one solve per step would have
 //!   (`REFRESH_EXCESS`), or at once if CG does not converge in 25
-//!   iterations. Otherwise the matrix is refactorized.
+//!   iterations. Otherwise the matrix is refactorized. With `reuse_f32`
+//!   (default) that CG applies an `f32` copy of the stale factor, solved
+//!   two-way parallel over a cut of its elimination tree
+//!   ([`crate::supernodal`]); the CG stays in `f64`.
 //! * CG: block-Jacobi PCG to the relative tolerance `cg_tol`, warm-started
 //!   from the constant-acceleration predictor.
 
@@ -95,6 +98,16 @@ pub struct DynParams {
     pub factor_reuse: bool,
     /// Relative residual of that CG (default [`REUSE_TOL`]).
     pub reuse_tol: f64,
+    /// That CG applies an `f32` copy of the stale factor
+    /// ([`System::set_single_precision_preconditioner`], solved two-way
+    /// parallel by [`crate::supernodal::SplitSolve`]); the CG stays in
+    /// `f64` and reaches the same `reuse_tol`. Default `true`: on the bench
+    /// block the same CG iterations and node error (6.8e-7 of the stroke
+    /// against refactorizing every step) at a third of the preconditioner's
+    /// wall time at 2 threads (examples/step_speed.rs, factor_cost.rs).
+    /// Should an `f32` factor be too poor for some matrix, the CG misses its
+    /// 25-iteration cap and the step refactorizes (no loss of accuracy).
+    pub reuse_f32: bool,
     /// Rayleigh mass coefficient `alpha` (1/s).
     pub rayleigh_mass: f64,
     /// Rayleigh stiffness coefficient `beta` (s).
@@ -119,6 +132,7 @@ impl Default for DynParams {
             lazy_threshold: 0.0,
             factor_reuse: true,
             reuse_tol: REUSE_TOL,
+            reuse_f32: true,
             rayleigh_mass: 0.0,
             rayleigh_stiffness: 0.0,
             iterations: 1,
@@ -219,7 +233,8 @@ impl FemModel {
         let (free, uc) = dof_conditions(n, &cons)?;
         let rho = body.material.density;
         let gravity_load = solid.body_loads(&move |_: &Vec3| gravity * rho);
-        let sys = System::new(&solid.pat, free);
+        let mut sys = System::new(&solid.pat, free);
+        sys.set_single_precision_preconditioner(p.reuse_f32);
         let x = solid.rest.clone();
         let contact = match &body.indenter {
             None => None,
@@ -761,7 +776,7 @@ const KEYS: &[FidelityKey] = &[
     },
     FidelityKey {
         name: "ordering",
-        doc: "Cholesky fill ordering: 0 AMD (default), 1 reverse Cuthill-McKee",
+        doc: "Cholesky fill ordering: 0 AMD, 1 reverse Cuthill-McKee, 2 geometric nested dissection (default)",
     },
     FidelityKey {
         name: "cg_tol",
@@ -774,6 +789,10 @@ const KEYS: &[FidelityKey] = &[
     FidelityKey {
         name: "reuse_tol",
         doc: "Cholesky with factor_reuse: relative residual of the stale-factor PCG (default 1e-6)",
+    },
+    FidelityKey {
+        name: "reuse_f32",
+        doc: "Cholesky with factor_reuse: 1 (default) = the stale-factor PCG applies an f32 copy of the factor, two-way parallel (CG in f64, same tolerance), 0 = the f64 factor (faer's sequential solve)",
     },
     FidelityKey {
         name: "lazy_threshold",
@@ -820,10 +839,11 @@ impl FemFactory {
             1 => Integrator::BackwardEuler,
             _ => Integrator::QuasiStatic,
         };
-        let ordering = if code("ordering", 1.0)? == 1.0 {
-            Ordering::Rcm
-        } else {
-            Ordering::Amd
+        let ordering = match full.extra("ordering", 2.0) {
+            0.0 => Ordering::Amd,
+            1.0 => Ordering::Rcm,
+            2.0 => Ordering::NestedDissection,
+            v => return Err(BuildError::bad("ordering", format!("must be 0, 1 or 2, got {v}"))),
         };
         let cg_tol = full.extra("cg_tol", 1e-8);
         if !(cg_tol > 0.0 && cg_tol < 1.0) {
@@ -849,6 +869,11 @@ impl FemFactory {
             0.0 => false,
             1.0 => true,
             v => return Err(BuildError::bad("factor_reuse", format!("must be 0 or 1, got {v}"))),
+        };
+        let reuse_f32 = match full.extra("reuse_f32", 1.0) {
+            0.0 => false,
+            1.0 => true,
+            v => return Err(BuildError::bad("reuse_f32", format!("must be 0 or 1, got {v}"))),
         };
         let reuse_tol = full.extra("reuse_tol", REUSE_TOL);
         if !(reuse_tol > 0.0 && reuse_tol < 1.0) {
@@ -879,6 +904,7 @@ impl FemFactory {
             lazy_threshold: nonneg("lazy_threshold")?,
             factor_reuse,
             reuse_tol,
+            reuse_f32,
             rayleigh_mass: nonneg("rayleigh_mass")?,
             rayleigh_stiffness: nonneg("rayleigh_stiffness")?,
             iterations: full.iterations.unwrap_or(1),

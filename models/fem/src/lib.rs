@@ -31,6 +31,7 @@ pub mod dynamics;
 pub mod element;
 pub mod material;
 pub mod statics;
+pub mod supernodal;
 
 pub use assembly::{LinearSolver, Ordering};
 pub use contact::SphereContact;

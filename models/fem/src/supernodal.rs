@@ -1,0 +1,313 @@
+//! Two-way parallel, thread-count independent triangular solves with an
+//! `f32` copy of faer's supernodal Cholesky factor `P A P^T = L L^T`: the
+//! preconditioner of the stale-factor PCG ([`crate::assembly::System::solve_factor_pcg`]).
+//!
+//! faer 0.24's supernodal solve walks the supernodes one after the other
+//! and passes its `Par` only to the dense kernels of each supernode, which
+//! are too small to gain from threads (and its parallel kernels change the
+//! round-off with the thread count). Here the supernodal elimination tree
+//! is cut instead: the supernodes near the root (the "top", e.g. the first
+//! separators of a nested-dissection ordering) are kept together, and the
+//! subtrees hanging below them are dealt into two bins of about equal
+//! factor size. The two bins share no unknowns except the top ones:
+//!
+//! * forward (`L y = b`): each bin eliminates its own supernodes and
+//!   accumulates its updates of the top unknowns in its own buffer; the top
+//!   right-hand side is then `b_top + acc_0 + acc_1` (this order), and the
+//!   top supernodes are eliminated;
+//! * backward (`L^T x = y`): the top supernodes first, then each bin reads
+//!   the top values and back-substitutes its own supernodes.
+//!
+//! The two bins run under `rayon::join`, so in any thread pool (one thread
+//! or two) every floating-point operation is the same: results are
+//! bit-identical for any thread count. The dense kernels are plain column
+//! loops (axpy forward, dot products with eight fixed partial sums
+//! backward) without fused multiply-adds, so the AVX2 build (pulp's `V3`,
+//! checked at run time) and the scalar build give the same bits as well.
+
+use faer::sparse::linalg::cholesky::{SymbolicCholesky, SymbolicCholeskyRaw};
+
+/// One supernode in a part's local numbering.
+struct Snode {
+    /// Local index of its first column.
+    off: usize,
+    /// Columns.
+    ncols: usize,
+    /// Offset of its values (column-major, `ncols + pat.len()` rows) in the factor.
+    val: usize,
+    /// Local indices of its off-diagonal rows.
+    pat: Vec<u32>,
+}
+
+/// The supernodes of one bin, or of the top.
+struct Part {
+    /// Full-DOF index of every local unknown it owns (gather/scatter).
+    src: Vec<usize>,
+    /// Supernodes, children before parents.
+    snodes: Vec<Snode>,
+    /// Work vector: own unknowns, then (bins) the top's unknowns.
+    buf: Vec<f32>,
+    /// Scratch of the longest off-diagonal pattern.
+    tmp: Vec<f32>,
+}
+
+/// The cut of a supernodal factor into a top and two bins (see the module docs).
+pub struct SplitSolve {
+    top: Part,
+    bins: [Part; 2],
+    /// Factor values in bin 0, bin 1 and the top.
+    pub values: [usize; 3],
+}
+
+impl SplitSolve {
+    /// Cut the supernodal elimination tree of `symbolic` (`None` when faer
+    /// chose a simplicial factorization). `dofs[i]` is the full-DOF index of
+    /// free unknown `i`.
+    pub fn new(symbolic: &SymbolicCholesky<usize>, dofs: &[usize]) -> Option<Self> {
+        let SymbolicCholeskyRaw::Supernodal(sn) = symbolic.raw() else {
+            return None;
+        };
+        let ns = sn.n_supernodes();
+        let (begin, end) = (sn.supernode_begin(), sn.supernode_end());
+        let val_ptr = sn.col_ptr_for_val();
+        let n = symbolic.nrows();
+        let mut snode_of = vec![0usize; n];
+        for s in 0..ns {
+            snode_of[begin[s]..end[s]].fill(s);
+        }
+        let pattern = |s: usize| sn.supernode(s).pattern();
+        // Elimination tree of the supernodes: the parent owns the first
+        // off-diagonal row. Parents come after their children.
+        let mut children: Vec<Vec<usize>> = vec![Vec::new(); ns];
+        let mut roots = Vec::new();
+        for s in 0..ns {
+            match pattern(s).first() {
+                Some(&r) => children[snode_of[r]].push(s),
+                None => roots.push(s),
+            }
+        }
+        let mut work: Vec<usize> = (0..ns).map(|s| val_ptr[s + 1] - val_ptr[s]).collect();
+        for s in 0..ns {
+            if let Some(&r) = pattern(s).first() {
+                work[snode_of[r]] += work[s];
+            }
+        }
+        // Move the largest subtree's root into the top, one at a time, and
+        // keep the cut with the shortest critical path (top plus the
+        // heavier bin); stop once the top holds half the factor.
+        let deal = |subtrees: &[usize]| -> ([usize; 2], Vec<(usize, usize)>) {
+            let mut order = subtrees.to_vec();
+            order.sort_by_key(|&s| (std::cmp::Reverse(work[s]), s));
+            let mut load = [0usize; 2];
+            let mut assign = Vec::with_capacity(order.len());
+            for s in order {
+                let b = usize::from(load[1] < load[0]);
+                load[b] += work[s];
+                assign.push((s, b));
+            }
+            (load, assign)
+        };
+        let all: usize = roots.iter().map(|&s| work[s]).sum();
+        let mut subtrees = roots;
+        let mut top: Vec<usize> = Vec::new();
+        let mut top_work = 0;
+        let mut best = (usize::MAX, 0, Vec::new());
+        while 2 * top_work <= all {
+            let (load, assign) = deal(&subtrees);
+            let path = top_work + load[0].max(load[1]);
+            if path < best.0 {
+                best = (path, top.len(), assign);
+            }
+            let Some((k, &big)) = subtrees.iter().enumerate().max_by_key(|&(_, &s)| (work[s], s)) else {
+                break;
+            };
+            subtrees.swap_remove(k);
+            top.push(big);
+            top_work += work[big] - children[big].iter().map(|&c| work[c]).sum::<usize>();
+            subtrees.extend(&children[big]);
+        }
+        let mut owner = vec![2u8; ns];
+        for (root, b) in best.2 {
+            let mut stack = vec![root];
+            while let Some(s) = stack.pop() {
+                owner[s] = b as u8;
+                stack.extend(&children[s]);
+            }
+        }
+        let perm = symbolic.perm().map(|p| p.arrays().0);
+        let full = |col: usize| dofs[perm.map_or(col, |f| f[col])];
+        // Local numbering: each part's supernodes in increasing order.
+        let mut local = vec![0usize; n];
+        let mut parts: Vec<Part> = (0..3)
+            .map(|_| Part {
+                src: Vec::new(),
+                snodes: Vec::new(),
+                buf: Vec::new(),
+                tmp: Vec::new(),
+            })
+            .collect();
+        for s in 0..ns {
+            let p = &mut parts[owner[s] as usize];
+            for col in begin[s]..end[s] {
+                local[col] = p.src.len();
+                p.src.push(full(col));
+            }
+        }
+        let n_top = parts[2].src.len();
+        for s in 0..ns {
+            let o = owner[s] as usize;
+            let n_own = parts[o].src.len();
+            let pat: Vec<u32> = pattern(s)
+                .iter()
+                .map(|&r| {
+                    let ro = owner[snode_of[r]] as usize;
+                    debug_assert!(ro == o || ro == 2, "supernode {s} (part {o}) updates part {ro}");
+                    (if ro == o { local[r] } else { n_own + local[r] }) as u32
+                })
+                .collect();
+            let p = &mut parts[o];
+            p.tmp.resize(p.tmp.len().max(pat.len()), 0.0);
+            p.snodes.push(Snode {
+                off: local[begin[s]],
+                ncols: end[s] - begin[s],
+                val: val_ptr[s],
+                pat,
+            });
+        }
+        for (o, p) in parts.iter_mut().enumerate() {
+            p.buf = vec![0.0; p.src.len() + if o < 2 { n_top } else { 0 }];
+        }
+        let top = parts.pop().expect("three parts");
+        let b1 = parts.pop().expect("three parts");
+        let b0 = parts.pop().expect("three parts");
+        let mut values = [0; 3];
+        for s in 0..ns {
+            values[owner[s] as usize] += val_ptr[s + 1] - val_ptr[s];
+        }
+        Some(Self {
+            top,
+            bins: [b0, b1],
+            values,
+        })
+    }
+
+    /// `z = A_0^-1 r` with the `f32` factor values `l` (faer's supernodal
+    /// layout): `r`, `z` full DOF vectors, `z`'s constrained entries untouched.
+    pub fn solve(&mut self, l: &[f32], r: &[f64], z: &mut [f64]) {
+        let Self { top, bins, .. } = self;
+        let [b0, b1] = bins;
+        let forward_bin = |p: &mut Part| {
+            let n_own = p.src.len();
+            for (v, &d) in p.buf.iter_mut().zip(&p.src) {
+                *v = r[d] as f32;
+            }
+            p.buf[n_own..].fill(0.0);
+            with_simd(|| {
+                for s in &p.snodes {
+                    forward(l, s, &mut p.buf, &mut p.tmp);
+                }
+            });
+        };
+        rayon::join(|| forward_bin(b0), || forward_bin(b1));
+        let (n0, n1) = (b0.src.len(), b1.src.len());
+        for (k, (v, &d)) in top.buf.iter_mut().zip(&top.src).enumerate() {
+            *v = (r[d] as f32 + b0.buf[n0 + k]) + b1.buf[n1 + k];
+        }
+        with_simd(|| {
+            for s in &top.snodes {
+                forward(l, s, &mut top.buf, &mut top.tmp);
+            }
+            for s in top.snodes.iter().rev() {
+                backward(l, s, &mut top.buf, &mut top.tmp);
+            }
+        });
+        let top_x = &top.buf;
+        let backward_bin = |p: &mut Part| {
+            let n_own = p.src.len();
+            p.buf[n_own..].copy_from_slice(top_x);
+            with_simd(|| {
+                for s in p.snodes.iter().rev() {
+                    backward(l, s, &mut p.buf, &mut p.tmp);
+                }
+            });
+        };
+        rayon::join(|| backward_bin(b0), || backward_bin(b1));
+        for p in [&*b0, &*b1, &*top] {
+            for (v, &d) in p.buf.iter().zip(&p.src) {
+                z[d] = f64::from(*v);
+            }
+        }
+    }
+}
+
+/// Run `f` compiled for AVX2 (pulp's `V3`) when the CPU has it: the
+/// kernels below are inlined into it and vectorize with 8 `f32` lanes.
+#[inline(always)]
+fn with_simd(f: impl FnOnce()) {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(simd) = pulp::x86::V3::try_new() {
+        return simd.vectorize(f);
+    }
+    f()
+}
+
+/// Forward elimination of one supernode: `x_s = L_ss^-1 x_s`, then
+/// `x_pat -= L_ps x_s` (column by column).
+#[inline(always)]
+fn forward(l: &[f32], s: &Snode, buf: &mut [f32], tmp: &mut [f32]) {
+    let (c, p) = (s.ncols, s.pat.len());
+    let m = c + p;
+    let tmp = &mut tmp[..p];
+    tmp.fill(0.0);
+    let xs = &mut buf[s.off..s.off + c];
+    for j in 0..c {
+        let col = &l[s.val + j * m..s.val + (j + 1) * m];
+        let xj = xs[j] / col[j];
+        xs[j] = xj;
+        for (x, &a) in xs[j + 1..].iter_mut().zip(&col[j + 1..c]) {
+            *x -= a * xj;
+        }
+        for (t, &a) in tmp.iter_mut().zip(&col[c..]) {
+            *t += a * xj;
+        }
+    }
+    for (&i, &t) in s.pat.iter().zip(tmp.iter()) {
+        buf[i as usize] -= t;
+    }
+}
+
+/// Back substitution of one supernode: `x_s = L_ss^-T (x_s - L_ps^T x_pat)`.
+#[inline(always)]
+fn backward(l: &[f32], s: &Snode, buf: &mut [f32], tmp: &mut [f32]) {
+    let (c, p) = (s.ncols, s.pat.len());
+    let m = c + p;
+    let tmp = &mut tmp[..p];
+    for (t, &i) in tmp.iter_mut().zip(&s.pat) {
+        *t = buf[i as usize];
+    }
+    let xs = &mut buf[s.off..s.off + c];
+    for j in (0..c).rev() {
+        let col = &l[s.val + j * m..s.val + (j + 1) * m];
+        let v = xs[j] - dot(&col[j + 1..c], &xs[j + 1..]) - dot(&col[c..], tmp);
+        xs[j] = v / col[j];
+    }
+}
+
+/// `a . b` with eight fixed partial sums (lane `k` takes the entries
+/// `k mod 8`), added in a fixed order: vectorizes, and gives the same bits
+/// with or without SIMD.
+#[inline(always)]
+fn dot(a: &[f32], b: &[f32]) -> f32 {
+    let mut acc = [0.0f32; 8];
+    let (a8, ar) = a.as_chunks::<8>();
+    let (b8, br) = b[..a.len()].as_chunks::<8>();
+    for (x, y) in a8.iter().zip(b8) {
+        for k in 0..8 {
+            acc[k] += x[k] * y[k];
+        }
+    }
+    for (k, (x, y)) in ar.iter().zip(br).enumerate() {
+        acc[k] += x * y;
+    }
+    ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]))
+}
