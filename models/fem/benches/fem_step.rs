@@ -1,7 +1,8 @@
 //! One Newmark step (beta = 1/4, one Newton iteration) of a corotational
 //! block of 12,960 tets / 2,704 nodes (the needle-insertion seed's prostate
 //! size is 13,375 tets / 2,763 vertices), bottom fixed, top driven. The
-//! Cholesky cases use the default nested-dissection ordering unless named
+//! Cholesky cases use the default ordering (automatic: nested dissection
+//! on this block, by fewer factor non-zeros) unless named
 //! `_amd`, and the stale-factor CG applies the `f32` two-way parallel copy
 //! of the factor (`reuse_f32`, default) unless named `_f64`:
 //! * `cholesky_reuse`: lazy threshold 0.05 rad; the factorization is reused
@@ -73,7 +74,7 @@ fn bench(c: &mut Criterion) {
         .measurement_time(Duration::from_secs(4))
         .warm_up_time(Duration::from_secs(1));
     let cg = |tol: f64| LinearSolver::Cg { tol, max_iter: 500 };
-    // Default: nested dissection, f32 two-way preconditioner.
+    // Default: automatic ordering (nested dissection here), f32 two-way preconditioner.
     let chol = LinearSolver::default();
     let amd = LinearSolver::Cholesky(Ordering::Amd);
     let cases = [

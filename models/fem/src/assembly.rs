@@ -319,15 +319,21 @@ pub enum Ordering {
     /// Geometric nested dissection on the node graph
     /// ([`Pattern::nested_dissection`]), expanded to DOFs.
     NestedDissection,
+    /// Whichever of [`Ordering::Amd`] and [`Ordering::NestedDissection`]
+    /// gives the factor fewer non-zeros, decided once by both symbolic
+    /// analyses (cheap next to one numeric factorization). Neither wins
+    /// everywhere: on the bench block (12,960 tets) nested dissection has
+    /// 2.27 M non-zeros against AMD's 2.86 M (factorization 339 M against
+    /// 517 M instructions, examples/factor_cost.rs); on the thin Lamé tube
+    /// coordinate bisection cuts badly and AMD's step costs 23 % fewer
+    /// instructions (the instruction gate's fem workload).
+    Auto,
 }
 
-/// Cholesky with nested dissection: on the bench block (12,960 tets) its
-/// factor has 2.27 M non-zeros against AMD's 2.86 M, and a numeric
-/// factorization costs 339 M instructions against 517 M (callgrind,
-/// examples/factor_cost.rs).
+/// Cholesky with the automatic fill ordering ([`Ordering::Auto`]).
 impl Default for LinearSolver {
     fn default() -> Self {
-        LinearSolver::Cholesky(Ordering::NestedDissection)
+        LinearSolver::Cholesky(Ordering::Auto)
     }
 }
 
@@ -520,41 +526,54 @@ impl System {
         self.chol.as_ref().is_some_and(|c| c.valid)
     }
 
+    /// Symbolic Cholesky analysis of the free-DOF pattern under `ordering`
+    /// (not [`Ordering::Auto`], which [`Self::factorize`] resolves).
+    fn symbolic(&self, pat: &Pattern, ordering: Ordering) -> Result<SymbolicCholesky<usize>, String> {
+        let perm_storage;
+        let ord = match ordering {
+            Ordering::Amd | Ordering::Auto => SymmetricOrdering::Amd,
+            Ordering::Rcm | Ordering::NestedDissection => {
+                let nodes = if ordering == Ordering::Rcm {
+                    pat.rcm()
+                } else {
+                    pat.nested_dissection()
+                };
+                let mut fwd = Vec::with_capacity(self.n_free());
+                for node in nodes {
+                    for i in 0..3 {
+                        if let Some(f) = self.free_index(3 * node + i) {
+                            fwd.push(f);
+                        }
+                    }
+                }
+                let mut inv = vec![0usize; fwd.len()];
+                for (k, &f) in fwd.iter().enumerate() {
+                    inv[f] = k;
+                }
+                perm_storage = (fwd, inv);
+                SymmetricOrdering::Custom(faer::perm::PermRef::new_checked(
+                    &perm_storage.0,
+                    &perm_storage.1,
+                    self.n_free(),
+                ))
+            }
+        };
+        factorize_symbolic_cholesky(self.sym.as_ref(), Side::Upper, ord, CholeskySymbolicParams::default())
+            .map_err(|e| format!("symbolic Cholesky failed: {e:?}"))
+    }
+
     /// Numeric Cholesky of the current values (symbolic analysis on first use).
     pub fn factorize(&mut self, pat: &Pattern, ordering: Ordering) -> Result<(), String> {
         if self.chol.is_none() {
-            let perm_storage;
-            let ord = match ordering {
-                Ordering::Amd => SymmetricOrdering::Amd,
-                Ordering::Rcm | Ordering::NestedDissection => {
-                    let nodes = if ordering == Ordering::Rcm {
-                        pat.rcm()
-                    } else {
-                        pat.nested_dissection()
-                    };
-                    let mut fwd = Vec::with_capacity(self.n_free());
-                    for node in nodes {
-                        for i in 0..3 {
-                            if let Some(f) = self.free_index(3 * node + i) {
-                                fwd.push(f);
-                            }
-                        }
-                    }
-                    let mut inv = vec![0usize; fwd.len()];
-                    for (k, &f) in fwd.iter().enumerate() {
-                        inv[f] = k;
-                    }
-                    perm_storage = (fwd, inv);
-                    SymmetricOrdering::Custom(faer::perm::PermRef::new_checked(
-                        &perm_storage.0,
-                        &perm_storage.1,
-                        self.n_free(),
-                    ))
+            let symbolic = match ordering {
+                Ordering::Auto => {
+                    let amd = self.symbolic(pat, Ordering::Amd)?;
+                    let nd = self.symbolic(pat, Ordering::NestedDissection)?;
+                    // Ties keep AMD (the ordering that needs no coordinates).
+                    if nd.len_val() < amd.len_val() { nd } else { amd }
                 }
+                o => self.symbolic(pat, o)?,
             };
-            let symbolic =
-                factorize_symbolic_cholesky(self.sym.as_ref(), Side::Upper, ord, CholeskySymbolicParams::default())
-                    .map_err(|e| format!("symbolic Cholesky failed: {e:?}"))?;
             let req = symbolic
                 .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
                 .or(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq))

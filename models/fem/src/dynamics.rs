@@ -776,7 +776,7 @@ const KEYS: &[FidelityKey] = &[
     },
     FidelityKey {
         name: "ordering",
-        doc: "Cholesky fill ordering: 0 AMD, 1 reverse Cuthill-McKee, 2 geometric nested dissection (default)",
+        doc: "Cholesky fill ordering: 0 AMD, 1 reverse Cuthill-McKee, 2 geometric nested dissection, 3 whichever of AMD and nested dissection fills less (default)",
     },
     FidelityKey {
         name: "cg_tol",
@@ -839,11 +839,12 @@ impl FemFactory {
             1 => Integrator::BackwardEuler,
             _ => Integrator::QuasiStatic,
         };
-        let ordering = match full.extra("ordering", 2.0) {
+        let ordering = match full.extra("ordering", 3.0) {
             0.0 => Ordering::Amd,
             1.0 => Ordering::Rcm,
             2.0 => Ordering::NestedDissection,
-            v => return Err(BuildError::bad("ordering", format!("must be 0, 1 or 2, got {v}"))),
+            3.0 => Ordering::Auto,
+            v => return Err(BuildError::bad("ordering", format!("must be 0, 1, 2 or 3, got {v}"))),
         };
         let cg_tol = full.extra("cg_tol", 1e-8);
         if !(cg_tol > 0.0 && cg_tol < 1.0) {

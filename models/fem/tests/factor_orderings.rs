@@ -115,6 +115,10 @@ fn nested_dissection_reduces_fill_on_the_bench_block() {
         nnz_nd < nnz_amd && nnz_nd < nnz_rcm,
         "factor nnz: nested dissection {nnz_nd}, AMD {nnz_amd}, RCM {nnz_rcm}"
     );
+    // The automatic ordering keeps the smaller of the two analyses.
+    let (nnz_auto, x_auto) = factor_and_solve(Ordering::Auto);
+    assert_eq!(nnz_auto, nnz_nd.min(nnz_amd));
+    assert_eq!(x_auto, x_nd, "auto picked nested dissection, same factor");
     let scale = x_amd.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let diff = x_nd.iter().zip(&x_amd).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
     // Same matrix, two orderings: the solutions differ by round-off only
