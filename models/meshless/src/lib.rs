@@ -35,6 +35,7 @@
 pub mod contact;
 pub mod elastic;
 pub mod grid;
+pub mod kdtree;
 pub mod kernel;
 pub mod mls;
 pub mod model;
