@@ -3,14 +3,26 @@
 //! neighbourhoods, weights and moment matrices are built once at rest.
 //!
 //! **Gradient by moving least squares.** For node `i` with rest neighbours
-//! `j` (`|X_ij| < h`, `X_ij = X_j - X_i`) and poly6 weights `w_ij`
-//! ([`crate::kernel::poly6`]), the weighted least-squares fit of the
+//! `j` (`|X_ij| < h_i`, `X_ij = X_j - X_i`) and poly6 weights
+//! `w_ij = W(|X_ij|, h_i)` ([`crate::kernel::poly6`]), the weighted least-squares fit of the
 //! displacement gives `grad u|_i = (sum_j w_ij u_ji X_ij^T) A_i^-1` with the
 //! moment matrix `A_i = sum_j w_ij X_ij X_ij^T` (Müller et al. 2004, the
 //! MLS derivation of Sec. 4.1). With `d_ij = A_i^-1 X_ij w_ij` and
 //! `sum_j X_ij d_ij^T = I` the deformation gradient is
 //! `F_i = I + grad u|_i = sum_j x_ij d_ij^T` (`x_ij` current). Any affine
 //! field is reproduced exactly (each `F_i` is its matrix).
+//!
+//! **Per-node support radius.** Each node has its own radius `h_i` (Müller
+//! et al. 2004 likewise give each phyxel a support proportional to its mean
+//! distance to its nearest neighbours), so a graded mesh keeps about the
+//! same neighbour count everywhere ([`crate::model`] sets
+//! `h_i = support_factor l_i`, `l_i` the node's local edge length). The neighbourhoods are then not symmetric (`j` may see `i`
+//! while `i` does not see `j`), which costs nothing: `F_i` depends on node
+//! `i`'s own neighbourhood alone, the energy below is a sum of per-node
+//! terms `U_i(x_i, x_{N(i)})`, and the forces and Hessian-vector products
+//! are assembled term by term, each scattering `dU_i/dx_j` to the `j` of
+//! `N(i)` and its negated sum to `i`. They stay the exact derivatives of
+//! the energy whatever the radii.
 //!
 //! **Material.** Green strain `E = (F^T F - I) / 2`, St Venant–Kirchhoff
 //! stress `S = lambda tr(E) I + 2 mu E` (Lamé parameters from `E`, `nu`),
@@ -34,13 +46,14 @@
 
 use surgbench_core::{Mat3, Vec3};
 
-use crate::grid::UniformGrid;
+use crate::kdtree::KdTree;
 use crate::kernel::poly6;
 
 /// Why the point discretisation could not be built.
 #[derive(Debug, Clone, PartialEq)]
 pub enum DiscretizationError {
-    /// The support radius is not usable (non-positive, or the grid too big).
+    /// A support radius is not usable (non-positive or not finite), or
+    /// there is not one per node.
     BadRadius(String),
     /// A node's moment matrix is singular or too ill-conditioned: its
     /// neighbours (within the support radius) do not span 3D.
@@ -64,7 +77,7 @@ impl std::fmt::Display for DiscretizationError {
                 rcond,
             } => write!(
                 f,
-                "node {node} has {neighbours} neighbours and a moment matrix with rcond {rcond:.2e}: raise the support radius"
+                "node {node} has {neighbours} neighbours within its support radius and a moment matrix with rcond {rcond:.2e} (they do not span 3D): raise the support radius"
             ),
         }
     }
@@ -75,6 +88,22 @@ pub fn lame(youngs_modulus: f64, poisson_ratio: f64) -> (f64, f64) {
     let mu = youngs_modulus / (2.0 * (1.0 + poisson_ratio));
     let lam = youngs_modulus * poisson_ratio / ((1.0 + poisson_ratio) * (1.0 - 2.0 * poisson_ratio));
     (mu, lam)
+}
+
+/// Conditioning `lambda_min / lambda_max` of node `i`'s moment matrix
+/// `A_i = sum_j w_ij X_ij X_ij^T` (poly6 weights at support `h` m) over the
+/// rest positions `rest` indexed by `tree`; 0 when no neighbour has weight.
+/// `found` is scratch space. [`PointElastic::new`] refuses `rcond <= 1e-8`.
+pub fn moment_rcond(rest: &[Vec3], tree: &KdTree, i: usize, h: f64, found: &mut Vec<usize>) -> f64 {
+    tree.within(&rest[i], h, found);
+    let mut m = Mat3::zeros();
+    for &j in found.iter() {
+        let x = rest[j] - rest[i];
+        m += x * x.transpose() * poly6(x.norm(), h);
+    }
+    let eig = m.symmetric_eigenvalues();
+    let (lo, hi) = (eig.min(), eig.max());
+    if hi > 0.0 { lo / hi } else { 0.0 }
 }
 
 /// Per-node cache of a configuration: deformation gradient `F` and second
@@ -94,8 +123,8 @@ pub struct PointElastic {
     pub rest: Vec<Vec3>,
     /// Node volumes (m^3).
     pub volume: Vec<f64>,
-    /// Support radius `h` of the poly6 weight (m).
-    pub radius: f64,
+    /// Support radius `h_i` of node `i`'s poly6 weight (m).
+    pub radius: Vec<f64>,
     /// Shear modulus (Pa).
     pub mu: f64,
     /// First Lamé parameter (Pa).
@@ -110,20 +139,34 @@ pub struct PointElastic {
 }
 
 impl PointElastic {
-    /// Build neighbourhoods (uniform grid, radius `radius` m), poly6
-    /// weights and `d_ij = A_i^-1 X_ij w_ij` for every node. `k_hg` is the
-    /// hourglass stiffness (Pa). Fails if a moment matrix has
-    /// `lambda_min / lambda_max < 1e-8`.
+    /// Build neighbourhoods (node `i` sees the nodes closer than
+    /// `radius[i]` m, found with a [`KdTree`]), poly6 weights
+    /// `W(|X_ij|, h_i)` and `d_ij = A_i^-1 X_ij w_ij` for every node. `k_hg`
+    /// is the hourglass stiffness (Pa). Fails if a radius is not positive
+    /// and finite, if there is not one per node, or if a moment matrix has
+    /// `lambda_min / lambda_max < 1e-8` (naming the node).
     pub fn new(
         rest: &[Vec3],
         volume: &[f64],
-        radius: f64,
+        radius: &[f64],
         youngs_modulus: f64,
         poisson_ratio: f64,
         k_hg: f64,
     ) -> Result<Self, DiscretizationError> {
-        let grid = UniformGrid::new(rest, radius)
-            .ok_or_else(|| DiscretizationError::BadRadius(format!("support radius {radius} m gives no usable grid")))?;
+        if radius.len() != rest.len() {
+            return Err(DiscretizationError::BadRadius(format!(
+                "{} support radii for {} nodes",
+                radius.len(),
+                rest.len()
+            )));
+        }
+        if let Some(i) = radius.iter().position(|h| !(*h > 0.0 && h.is_finite())) {
+            return Err(DiscretizationError::BadRadius(format!(
+                "node {i} has support radius {} m: must be > 0 and finite",
+                radius[i]
+            )));
+        }
+        let tree = KdTree::new(rest);
         let (mu, lambda) = lame(youngs_modulus, poisson_ratio);
         let n = rest.len();
         let mut offs = Vec::with_capacity(n + 1);
@@ -131,7 +174,8 @@ impl PointElastic {
         let (mut nbr, mut d, mut xr, mut a) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         let mut found = Vec::new();
         for i in 0..n {
-            grid.within(&rest[i], radius, &mut found);
+            let h = radius[i];
+            tree.within(&rest[i], h, &mut found);
             let mut m = Mat3::zeros();
             let mut wsum = 0.0;
             let start = nbr.len();
@@ -140,7 +184,7 @@ impl PointElastic {
                     continue;
                 }
                 let x = rest[j] - rest[i];
-                let w = poly6(x.norm(), radius);
+                let w = poly6(x.norm(), h);
                 if w <= 0.0 {
                     continue;
                 }
@@ -176,7 +220,7 @@ impl PointElastic {
         Ok(Self {
             rest: rest.to_vec(),
             volume: volume.to_vec(),
-            radius,
+            radius: radius.to_vec(),
             mu,
             lambda,
             k_hg,

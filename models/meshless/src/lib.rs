@@ -6,7 +6,8 @@
 //!
 //! * Point primitives are the nodes of the scene's tet mesh, with volume a
 //!   quarter of each adjacent tet's volume and mass `density * volume`.
-//! * Elasticity by MLS deformation gradients over a poly6 neighbourhood,
+//! * Elasticity by MLS deformation gradients over a poly6 neighbourhood of
+//!   per-node radius (the local cell size, so graded meshes work),
 //!   St Venant–Kirchhoff, with hourglass control ([`elastic`], after Müller
 //!   et al. 2004, SCA, and Ganzenmüller 2015).
 //! * Optional PBD corrections of the seed: edge stretching and virtual-tet
@@ -34,7 +35,7 @@
 
 pub mod contact;
 pub mod elastic;
-pub mod grid;
+pub mod kdtree;
 pub mod kernel;
 pub mod mls;
 pub mod model;
@@ -44,6 +45,9 @@ pub mod pressure;
 pub use contact::SphereContact;
 pub use elastic::{PointElastic, StateCache};
 pub use mls::MlsMap;
-pub use model::{Integrator, MESHLESS_KEYS, MappingError, MeshlessFactory, MeshlessSettings, MeshlessTissue};
+pub use model::{
+    Integrator, MESHLESS_KEYS, MappingError, MeshlessFactory, MeshlessSettings, MeshlessTissue, local_edge_lengths,
+    longest_edges,
+};
 pub use pbd::PbdConstraints;
 pub use pressure::PressureLoad;

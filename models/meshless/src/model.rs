@@ -14,9 +14,31 @@
 //!   terms (`U(x) - m g . x` with the boundary conditions at this step's
 //!   command): every step is an equilibrium. Default when the scene settles.
 //!
-//! Newton stops when the largest free force component is under
-//! `1e-9 E l^2` (N; `l` the mean mesh edge length), i.e. a residual stress
-//! of `1e-9 E`.
+//! **Support radii.** Node `i`'s poly6 support is `h_i = support_factor
+//! l_i` and the MLS radius of the surface particle on node `i` is
+//! `mls_factor l_i`, with `l_i` the mean edge of the tets around node `i`
+//! ([`local_edge_lengths`]). On the Kuhn-split blocks (congruent tets) `l_i`
+//! is the global mean edge, so the radii are the single radius used before
+//! (`support_factor` times the mean edge); on a graded mesh each node gets a
+//! neighbourhood of about the same number of cells, coarse or fine (one
+//! global radius left the coarse cells' nodes without a full neighbourhood
+//! and smoothed the fine cells over many cells). Where that neighbourhood
+//! is nearly flat (moment matrix `rcond < `[`RAISE_BELOW_RCOND`]: strongly
+//! anisotropic cells; on the graded vessel-wall sector of wall-indentation
+//! some nodes saw coplanar neighbours, rcond 7e-17 at level 0) both
+//! radii are raised to `support_floor e_i`, `e_i` the longest edge at the
+//! node ([`longest_edges`], [`DEFAULT_SUPPORT_FLOOR`]): the support then
+//! holds the node's whole mesh star, which spans 3D. The energy stays a sum of
+//! per-node terms, so forces and Hessian-vector products stay exact
+//! ([`crate::elastic`]). A node whose neighbours still do not span 3D is
+//! refused at build, naming the node.
+//!
+//! Newton stops when every node's largest free force component is under
+//! `1e-9 E l_i^2` (N; `l_i` its local edge length), i.e. a residual stress
+//! of `1e-9 E` at every node. (With one tolerance from the mean edge, the
+//! fine cells of a graded mesh, whose forces scale with `l_i^2`, were held
+//! to a looser relative residual: the sphere's reaction on wall-indentation
+//! differed by 4e-6 of itself between rigidly moved frames.)
 //!
 //! **Boundary conditions.** Fixed nodes stay at rest, driven nodes sit at
 //! `X + insertion d`, rollers (`partial_fixed`) hold the flagged world
@@ -65,7 +87,8 @@ use surgbench_core::{
 };
 
 use crate::contact::{DEFAULT_KAPPA, SphereContact};
-use crate::elastic::{PointElastic, StateCache};
+use crate::elastic::{PointElastic, StateCache, moment_rcond};
+use crate::kdtree::KdTree;
 use crate::mls::MlsMap;
 use crate::pbd::PbdConstraints;
 use crate::pressure::PressureLoad;
@@ -74,11 +97,11 @@ use crate::pressure::PressureLoad;
 pub const MESHLESS_KEYS: &[FidelityKey] = &[
     FidelityKey {
         name: "support_factor",
-        doc: "poly6 support radius h over the mean mesh edge length (default 1.5)",
+        doc: "poly6 support radius h_i over node i's local edge length (mean edge of the tets around it; default 1.5)",
     },
     FidelityKey {
         name: "mls_factor",
-        doc: "MLS surface-mapping radius over the mean mesh edge length (default 2.0)",
+        doc: "MLS surface-mapping radius over the local edge length of the surface node (default 2.0)",
     },
     FidelityKey {
         name: "stabilization",
@@ -105,6 +128,10 @@ pub const MESHLESS_KEYS: &[FidelityKey] = &[
         doc: "PBD virtual-tet energy stiffness in [0, 1] (default 0.5)",
     },
     FidelityKey {
+        name: "support_floor",
+        doc: "radius floor over the longest mesh edge at the node, applied where support_factor x the local edge gives a nearly flat neighbourhood (rcond < 1e-3) (default 1.05: the support holds the node's mesh star, which spans 3D; 0 = off)",
+    },
+    FidelityKey {
         name: "contact_stiffness",
         doc: "sphere contact penalty factor kappa: node stiffness kappa E/(1-nu^2) sqrt(node boundary area) (default 100; penetration ~ contact strain / kappa of the node spacing)",
     },
@@ -128,9 +155,9 @@ pub struct MeshlessSettings {
     pub dt: f64,
     /// PBD Gauss-Seidel sweeps per step.
     pub iterations: usize,
-    /// Support radius over the mean edge length.
+    /// Support radius over the node's local edge length.
     pub support_factor: f64,
-    /// MLS radius over the mean edge length.
+    /// MLS radius over the surface node's local edge length.
     pub mls_factor: f64,
     /// Hourglass stiffness over `E`.
     pub stabilization: f64,
@@ -144,6 +171,10 @@ pub struct MeshlessSettings {
     pub pbd_stretch: f64,
     /// PBD tet stiffness.
     pub pbd_tet: f64,
+    /// Floor of the support and MLS radii over the longest mesh edge at the
+    /// node where the plain support is nearly flat
+    /// ([`DEFAULT_SUPPORT_FLOOR`], [`RAISE_BELOW_RCOND`]; 0 = off).
+    pub support_floor: f64,
     /// Penalty factor `kappa` of the sphere contact ([`crate::contact`]).
     pub contact_stiffness: f64,
 }
@@ -206,6 +237,10 @@ impl MeshlessSettings {
             pbd: flag("pbd", f.extra("pbd", 0.0))?,
             pbd_stretch: unit("pbd_stretch", f.extra("pbd_stretch", 0.5))?,
             pbd_tet: unit("pbd_tet", f.extra("pbd_tet", 0.5))?,
+            support_floor: match f.extra("support_floor", DEFAULT_SUPPORT_FLOOR) {
+                v if v >= 0.0 && v.is_finite() => v,
+                v => return Err(BuildError::bad("support_floor", format!("must be >= 0, got {v}"))),
+            },
             contact_stiffness: positive("contact_stiffness", f.extra("contact_stiffness", DEFAULT_KAPPA))?,
         })
     }
@@ -257,14 +292,6 @@ impl ModelFactory for MeshlessFactory {
                 )));
             }
         }
-        let body = scene.tissues().next().expect("one tissue");
-        let (lo, hi) = edge_range(&body.mesh);
-        if hi > MAX_GRADING * lo {
-            return Err(Unsupported::new(format!(
-                "meshless uses one support radius for every node (support_factor x the mean edge length): this mesh is graded, its edges range from {lo:.3e} m to {hi:.3e} m (x{:.1}, above x{MAX_GRADING}), so the coarse cells' nodes find no full neighbourhood and the fine cells' are smoothed over many cells",
-                hi / lo
-            )));
-        }
         Ok(())
     }
     fn build(&self, scene: &Scene, fidelity: &Fidelity) -> Result<Box<dyn Model>, BuildError> {
@@ -272,30 +299,87 @@ impl ModelFactory for MeshlessFactory {
     }
 }
 
-/// Largest ratio of the longest to the shortest mesh edge that `meshless`
-/// takes. Its support radius is one length for all nodes (`support_factor`
-/// times the mean edge): on a strongly graded mesh the nodes of the large
-/// cells see no full neighbourhood (a singular MLS moment matrix at the
-/// default support; measured on the graded sphere-indentation block, whose
-/// edges range over x109) while a radius large enough for them smooths the
-/// fine cells over many cells (that block at level 0 with support_factor =
-/// mls_factor = 2.5 gave 5.9 times the Hertz force). The other tissue
-/// scenes: x1.7 (Kuhn blocks), x1.9 (wall sector), x3.3 (Lamé tube).
-pub const MAX_GRADING: f64 = 8.0;
+/// Local edge length `l_i` (m) of every node of `mesh`: the mean, over the
+/// tets containing node `i`, of each tet's mean edge length,
+/// `l_i = (1 / |T_i|) sum_{t in T_i} (1/6) sum_{e in t} |e|`. It is the
+/// global mean edge (the same average over all tets, counting each tet's six
+/// edges) restricted to the node's star, so on a mesh of congruent tets
+/// (the Kuhn-split cubes of `mesh::block`) every `l_i` equals the global mean
+/// edge up to rounding and the per-node radii are the old single radius; on
+/// a graded mesh it follows the cell size, and it spans the node's own
+/// incident edges and those opposite it, the extent of the star where its
+/// neighbours lie. A node in no tet gets 0 (refused by the caller).
+pub fn local_edge_lengths(mesh: &surgbench_core::TetMesh) -> Vec<f64> {
+    let mut sum = vec![0.0; mesh.nodes.len()];
+    let mut count = vec![0usize; mesh.nodes.len()];
+    for t in &mesh.tets {
+        let p = t.map(|i| mesh.nodes[i]);
+        let mut e = 0.0;
+        for a in 0..4 {
+            for b in a + 1..4 {
+                e += (p[b] - p[a]).norm();
+            }
+        }
+        for &i in t {
+            sum[i] += e / 6.0;
+            count[i] += 1;
+        }
+    }
+    sum.iter()
+        .zip(&count)
+        .map(|(&s, &c)| if c > 0 { s / c as f64 } else { 0.0 })
+        .collect()
+}
 
-/// Shortest and longest edge (m) of the tets of `mesh`.
-fn edge_range(mesh: &surgbench_core::TetMesh) -> (f64, f64) {
-    let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+/// Default floor of a node's radii over the longest mesh edge at the node,
+/// applied where the plain support gives a nearly flat neighbourhood
+/// ([`RAISE_BELOW_RCOND`]). Above 1 the support contains the node's whole
+/// mesh star, whose vertices span 3D (every tet has volume), so the moment
+/// matrix is regular on any valid mesh; the longest star edge then weighs
+/// `(1 - 1/1.05^2)^3 = 8e-4` of the centre. It is below the default
+/// supports on the Kuhn blocks (`1.05 sqrt 3 a = 1.82 a` < `1.5 x 1.26 a =
+/// 1.89 a`, `a` the cube edge), so it never acts there.
+pub const DEFAULT_SUPPORT_FLOOR: f64 = 1.05;
+
+/// A node's support is raised to the floor when its moment matrix at
+/// `support_factor l_i` has `lambda_min / lambda_max` below this: its
+/// neighbours lie nearly in a plane (measured on the graded vessel-wall
+/// sector of wall-indentation: rcond 7e-17, -2e-16 and 6e-11 at levels 0-2
+/// without the raise), and the gradient across it would rest on a
+/// near-singular fit. Applied only there, so graded but
+/// well-shaped cells (the sphere-indentation block) keep their local
+/// supports.
+pub const RAISE_BELOW_RCOND: f64 = 1e-3;
+
+/// Longest tet edge (m) at every node of `mesh` (0 for a node in no tet).
+pub fn longest_edges(mesh: &surgbench_core::TetMesh) -> Vec<f64> {
+    let mut out = vec![0.0f64; mesh.nodes.len()];
     for t in &mesh.tets {
         for a in 0..4 {
             for b in a + 1..4 {
                 let l = (mesh.nodes[t[b]] - mesh.nodes[t[a]]).norm();
-                lo = lo.min(l);
-                hi = hi.max(l);
+                out[t[a]] = out[t[a]].max(l);
+                out[t[b]] = out[t[b]].max(l);
             }
         }
     }
-    (lo, hi)
+    out
+}
+
+/// A neighbourhood that does not span 3D (`reason` names the node or
+/// surface particle). With the default radius factor `knob` and floor the
+/// scene's mesh is what cannot be modelled (a degenerate star), so
+/// `Unsupported`; with a factor or floor the caller chose, that is the bad
+/// parameter.
+fn refusal(fidelity: &Fidelity, knob: &str, reason: String) -> BuildError {
+    if fidelity.extras.contains_key(knob) || fidelity.extras.contains_key("support_floor") {
+        BuildError::bad(knob, reason)
+    } else {
+        Unsupported::new(format!(
+            "meshless at the default {knob} and support_floor: {reason} (the node's mesh star is degenerate)"
+        ))
+        .into()
+    }
 }
 
 /// Distances between MLS-mapped surface particles and where they should be (m).
@@ -357,8 +441,11 @@ pub struct MeshlessTissue {
     surface_faces: Vec<[usize; 3]>,
     mls: MlsMap,
     mean_edge: f64,
+    local_edge: Vec<f64>,
+    raised: Vec<usize>,
     scale: f64,
-    tol: f64,
+    /// Newton tolerance per node, `1e-9 E l_i^2` (N).
+    tol: Vec<f64>,
     time: f64,
     hand_force: Vec3,
     forces: Vec<Vec3>,
@@ -411,15 +498,31 @@ impl MeshlessTissue {
             ));
         }
         let mean_edge = edge_sum / edge_n as f64;
+        let local_edge = local_edge_lengths(mesh);
+        let longest = longest_edges(mesh);
+        let tree = KdTree::new(&mesh.nodes);
+        let mut found = Vec::new();
+        let mut raised = vec![false; nn];
+        let support: Vec<f64> = (0..nn)
+            .map(|i| {
+                let (h, floor) = (set.support_factor * local_edge[i], set.support_floor * longest[i]);
+                if h < floor && moment_rcond(&mesh.nodes, &tree, i, h, &mut found) < RAISE_BELOW_RCOND {
+                    raised[i] = true;
+                    floor
+                } else {
+                    h
+                }
+            })
+            .collect();
         let el = PointElastic::new(
             &mesh.nodes,
             &volume,
-            set.support_factor * mean_edge,
+            &support,
             m.youngs_modulus,
             m.poisson_ratio,
             set.stabilization * m.youngs_modulus,
         )
-        .map_err(|e| BuildError::bad("support_factor", e.to_string()))?;
+        .map_err(|e| refusal(fidelity, "support_factor", e.to_string()))?;
         let surface_faces_global = boundary_faces(mesh);
         let mut surface_nodes: Vec<usize> = surface_faces_global.iter().flatten().copied().collect();
         surface_nodes.sort_unstable();
@@ -430,8 +533,19 @@ impl MeshlessTissue {
         }
         let surface_faces = surface_faces_global.iter().map(|f| f.map(|i| local[i])).collect();
         let targets: Vec<Vec3> = surface_nodes.iter().map(|&i| mesh.nodes[i]).collect();
-        let mls = MlsMap::new(&mesh.nodes, &targets, set.mls_factor * mean_edge)
-            .map_err(|e| BuildError::bad("mls_factor", e.to_string()))?;
+        let mls_radius: Vec<f64> = surface_nodes
+            .iter()
+            .map(|&i| {
+                let r = set.mls_factor * local_edge[i];
+                if raised[i] {
+                    r.max(set.support_floor * longest[i])
+                } else {
+                    r
+                }
+            })
+            .collect();
+        let mls = MlsMap::new(&mesh.nodes, &targets, &mls_radius)
+            .map_err(|e| refusal(fidelity, "mls_factor", e.to_string()))?;
         let mut axis_free = vec![Vec3::repeat(1.0); nn];
         for &i in &body.fixed_nodes {
             axis_free[i] = Vec3::zeros();
@@ -487,6 +601,7 @@ impl MeshlessTissue {
                 *ind,
             )),
         };
+        let tol = local_edge.iter().map(|l| 1e-9 * m.youngs_modulus * l * l).collect();
         Ok(Self {
             set,
             cache: StateCache::default(),
@@ -505,8 +620,10 @@ impl MeshlessTissue {
             surface_faces,
             mls,
             mean_edge,
+            local_edge,
+            raised: (0..nn).filter(|&i| raised[i]).collect(),
             scale: (hi - lo).norm(),
-            tol: 1e-9 * m.youngs_modulus * mean_edge * mean_edge,
+            tol,
             time: 0.0,
             hand_force: Vec3::zeros(),
             forces: vec![Vec3::zeros(); nn],
@@ -545,9 +662,22 @@ impl MeshlessTissue {
         &self.mass
     }
 
-    /// Mean mesh edge length (m), the unit of the support radii.
+    /// Mean mesh edge length (m) over all tets (each tet's six edges).
     pub fn mean_edge(&self) -> f64 {
         self.mean_edge
+    }
+
+    /// Local edge length of every node (m), the unit of its support and MLS
+    /// radii ([`local_edge_lengths`]).
+    pub fn local_edge(&self) -> &[f64] {
+        &self.local_edge
+    }
+
+    /// Nodes whose radii were raised to the floor (`support_floor` times
+    /// their longest edge) because `support_factor` times their local edge
+    /// gave a nearly flat neighbourhood ([`RAISE_BELOW_RCOND`]), ascending.
+    pub fn raised_supports(&self) -> &[usize] {
+        &self.raised
     }
 
     /// Mass-proportional damping rate in use (1/s).
@@ -745,7 +875,7 @@ impl MeshlessTissue {
             if !res.is_finite() {
                 break;
             }
-            if res <= self.tol {
+            if g.iter().zip(&self.tol).all(|(v, t)| v.amax() <= *t) {
                 info.converged = true;
                 break;
             }

@@ -26,7 +26,15 @@ fn volumes(m: &surgbench_core::TetMesh) -> Vec<f64> {
 /// A jittered 4x3x3-cell block (cell ~2.5 mm) and its discretisation.
 fn setup(nu: f64, gamma: f64) -> (surgbench_core::TetMesh, PointElastic) {
     let m = jittered_block(Vec3::new(0.01, 0.0075, 0.0075), [4, 3, 3], 0.12, 7);
-    let el = PointElastic::new(&m.nodes, &volumes(&m), 1.5 * 0.0025 * 1.28, E, nu, gamma * E).unwrap();
+    let el = PointElastic::new(
+        &m.nodes,
+        &volumes(&m),
+        &vec![1.5 * 0.0025 * 1.28; m.nodes.len()],
+        E,
+        nu,
+        gamma * E,
+    )
+    .unwrap();
     (m, el)
 }
 
@@ -186,7 +194,7 @@ fn mls_reproduces_affine_fields_exactly() {
     surf.sort_unstable();
     surf.dedup();
     let targets: Vec<Vec3> = surf.iter().map(|&i| m.nodes[i]).collect();
-    let map = MlsMap::new(&m.nodes, &targets, 2.0 * 0.0025 * 1.28).unwrap();
+    let map = MlsMap::new(&m.nodes, &targets, &vec![2.0 * 0.0025 * 1.28; targets.len()]).unwrap();
     let mut r = Rng(8);
     let a = Mat3::identity() + Mat3::from_fn(|_, _| 0.3 * r.next());
     let c = r.vec();
@@ -219,7 +227,7 @@ fn mls_error(n: usize) -> f64 {
     surf.sort_unstable();
     surf.dedup();
     let targets: Vec<Vec3> = surf.iter().map(|&i| m.nodes[i]).collect();
-    let map = MlsMap::new(&m.nodes, &targets, 2.0 * 1.28 * h).unwrap();
+    let map = MlsMap::new(&m.nodes, &targets, &vec![2.0 * 1.28 * h; targets.len()]).unwrap();
     let (a, k) = (1e-3, std::f64::consts::PI / l);
     let u = |p: &Vec3| Vec3::new((k * p.y).sin(), (k * p.z).sin(), (k * p.x).sin()) * a;
     let x: Vec<Vec3> = m.nodes.iter().map(|p| p + u(p)).collect();

@@ -263,23 +263,51 @@ fn reruns_with_contact_are_bit_identical() {
     }
 }
 
-/// A strongly graded mesh is refused (one support radius cannot serve
-/// cells of very different sizes), with the grading in the reason; the
-/// uniform block is not.
+/// Strongly anisotropic cells: the top layer stretched x20 in z (cells of
+/// aspect 20). `support_factor` times the star's mean edge falls short of
+/// the tall edges, so without the floor (`support_floor=0`) the top nodes
+/// see only their own layer and the build is refused naming the node; with
+/// the default floor those nodes' supports are raised to hold their mesh
+/// star and it builds, the stretched nodes with several times the bottom's
+/// local edge.
+/// (Until per-node radii, every mesh with edges over x8 was refused.)
 #[test]
-fn strongly_graded_meshes_are_refused_with_a_reason() {
+fn anisotropic_cells_need_the_support_floor() {
     let scene = platen_scene(2, true);
     assert!(MeshlessFactory.check(&scene).is_ok());
     let mut graded = scene.clone();
     let surgbench_core::Body::Tissue(t) = &mut graded.bodies[0] else {
         unreachable!()
     };
-    // Stretch the top layer of cells 20 times in z: edges range over > x8.
     for p in &mut t.mesh.nodes {
         if p.z > 0.75 * L {
             p.z = 0.5 * L + (p.z - 0.5 * L) * 20.0;
         }
     }
-    let e = MeshlessFactory.check(&graded).unwrap_err();
-    assert!(e.reason.contains("graded"), "{}", e.reason);
+    let top = t.mesh.nodes.iter().position(|p| p.z > L).unwrap();
+    let longest = surgbench_meshless::longest_edges(&t.mesh);
+    assert!(
+        MeshlessFactory.check(&graded).is_ok(),
+        "the cheap check no longer refuses grading"
+    );
+    match MeshlessTissue::new(&graded, &fid(&["support_floor=0"])) {
+        Err(BuildError::BadParameter { reason, .. }) => {
+            assert!(reason.contains("node") && reason.contains("moment matrix"), "{reason}");
+        }
+        other => panic!("expected a refusal naming the node, got {:?}", other.map(|_| ())),
+    }
+    let m = MeshlessTissue::new(&graded, &fid(&[])).unwrap();
+    let h = &m.elastic().radius;
+    // Raised to the floor: 1.05 times the longest edge at the node (exact product).
+    assert!(m.raised_supports().contains(&top), "{:?}", m.raised_supports());
+    assert_eq!(h[top], 1.05 * longest[top], "top node radius");
+    // The bottom nodes keep their plain radius (1.5 x local edge, exact product).
+    assert_eq!(h[0], 1.5 * m.local_edge()[0], "bottom node radius");
+    // Top cells are 20 times taller: the top nodes' stars mix 0.5 L and 10 L edges.
+    assert!(
+        m.local_edge()[top] > 4.0 * m.local_edge()[0],
+        "local edges {:.3e} (top) vs {:.3e} (bottom)",
+        m.local_edge()[top],
+        m.local_edge()[0]
+    );
 }

@@ -205,14 +205,19 @@ fn factory_declines_what_it_cannot_model() {
         ["pbd=0.5"],
         ["pbd_tet=2"],
         ["support_factor=0"],
+        ["support_floor=-1"],
     ] {
         assert!(
             matches!(f.build(&tissue, &fid(&bad)), Err(BuildError::BadParameter { .. })),
             "{bad:?} accepted"
         );
     }
-    // Too small a support: corner nodes see fewer than three directions.
-    let e = f.build(&tissue, &fid(&["support_factor=0.5"])).err().unwrap();
+    // Too small a support without the floor: corner nodes see fewer than
+    // three directions.
+    let e = f
+        .build(&tissue, &fid(&["support_factor=0.5", "support_floor=0"]))
+        .err()
+        .unwrap();
     assert!(e.to_string().contains("moment matrix"), "{e}");
 }
 
