@@ -3,13 +3,15 @@
 //! synthetic observations, the refusal of models without tissue contact,
 //! and the `fem` model converging to Hertz with the mesh level.
 
+mod common;
+use common::body;
 use surgbench_comparisons::registry;
 use surgbench_comparisons::runner::{RunOptions, run_single};
-use surgbench_comparisons::scenario::{Params, Scenario, ScenarioRun};
+use surgbench_comparisons::scenario::{Params, Scenario};
 use surgbench_comparisons::scenarios::tissue::{
     self, SPHERE_DT, SphereIndentation, hertz_contact_radius, hertz_force, sphere_block_mesh, sphere_force_exact,
 };
-use surgbench_core::{Capability, Fidelity, ModelFactory, Observation, TissueBody, TissueObs, Vec3, mesh};
+use surgbench_core::{Capability, Fidelity, ModelFactory, Observation, TissueObs, Vec3, mesh};
 
 fn params(overrides: &[(&str, f64)]) -> Params {
     let o: Vec<(String, f64)> = overrides.iter().map(|(k, v)| (k.to_string(), *v)).collect();
@@ -22,10 +24,6 @@ fn level(l: usize) -> Fidelity {
         dt: Some(SPHERE_DT),
         ..Default::default()
     }
-}
-
-fn body(run: &dyn ScenarioRun) -> &TissueBody {
-    run.scene().tissues().next().expect("one tissue body")
 }
 
 /// The exact-sphere solution tends to Hertz as `delta / R -> 0`, with the

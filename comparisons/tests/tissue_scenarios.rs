@@ -5,6 +5,8 @@
 //! errors are known, the tissue comparison file, and end-to-end runs of the
 //! registered `pbd-tissue` and `fem` models through the runner.
 
+mod common;
+use common::{body, level};
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
 use surgbench_comparisons::comparison::Comparison;
@@ -17,22 +19,11 @@ use surgbench_comparisons::scenarios::tissue::{
 use surgbench_comparisons::scenarios::vessel::datasets_dir;
 use surgbench_core::mesh::{self, truth_cube};
 use surgbench_core::rng::SplitMix64;
-use surgbench_core::{Capability, Family, Fidelity, Mat3, Observation, TetMesh, TissueBody, TissueObs, Vec3};
+use surgbench_core::{Capability, Family, Fidelity, Mat3, Observation, TetMesh, TissueObs, Vec3};
 
 fn params(sc: &dyn Scenario, overrides: &[(&str, f64)]) -> Params {
     let o: Vec<(String, f64)> = overrides.iter().map(|(k, v)| (k.to_string(), *v)).collect();
     Params::resolve(sc.id(), sc.params(), &o).unwrap()
-}
-
-fn level(l: usize) -> Fidelity {
-    Fidelity {
-        mesh_level: Some(l),
-        ..Default::default()
-    }
-}
-
-fn body(run: &dyn ScenarioRun) -> &TissueBody {
-    run.scene().tissues().next().expect("one tissue body")
 }
 
 /// An observation of the scene's tissue with nodes at `f(rest)`.

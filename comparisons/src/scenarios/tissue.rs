@@ -1334,6 +1334,23 @@ pub fn wall_sphere_mesh(r: &WallReference, level: usize) -> TetMesh {
 /// node along z touching the sphere: a cell's resolution).
 pub struct WallIndentation;
 
+/// Young's modulus of the vessel-wall scenes (`wall-indentation`, `wall-punch`).
+const WALL_E: ParamSpec = p(
+    "youngs_modulus",
+    1e6,
+    "Pa",
+    Range::Positive,
+    "Young's modulus (arterial wall order of magnitude, Holzapfel et al. 2000)",
+);
+/// Density of the vessel-wall scenes.
+const WALL_DENSITY: ParamSpec = p(
+    "density",
+    1060.0,
+    "kg/m^3",
+    Range::Positive,
+    "density of the vessel wall",
+);
+
 /// Geometry, `E`'s reference value and `nu` come from the reference; the
 /// depth is bounded by the reference's curve (1-20 % of the wall thickness).
 const WALL_PARAMS: &[ParamSpec] = &[
@@ -1344,20 +1361,8 @@ const WALL_PARAMS: &[ParamSpec] = &[
         Range::Positive,
         "sphere travel into the wall at the end of the ramp, 1e-5..2e-4 (1-20 % of the 1 mm wall, the reference's range)",
     ),
-    p(
-        "youngs_modulus",
-        1e6,
-        "Pa",
-        Range::Positive,
-        "Young's modulus (arterial wall order of magnitude, Holzapfel et al. 2000)",
-    ),
-    p(
-        "density",
-        1060.0,
-        "kg/m^3",
-        Range::Positive,
-        "density of the vessel wall",
-    ),
+    WALL_E,
+    WALL_DENSITY,
     RAMP,
     DURATION,
     p(
@@ -1710,20 +1715,8 @@ const PUNCH_PARAMS: &[ParamSpec] = &[
         Range::Positive,
         "punch displacement into the wall at the end of the ramp, <= 2e-4 (20 % of the 1 mm wall, the reference's range)",
     ),
-    p(
-        "youngs_modulus",
-        1e6,
-        "Pa",
-        Range::Positive,
-        "Young's modulus (arterial wall order of magnitude, Holzapfel et al. 2000)",
-    ),
-    p(
-        "density",
-        1060.0,
-        "kg/m^3",
-        Range::Positive,
-        "density of the vessel wall",
-    ),
+    WALL_E,
+    WALL_DENSITY,
     RAMP,
     DURATION,
     p(
