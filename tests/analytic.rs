@@ -105,7 +105,7 @@ fn run_one_honours_parameter_overrides() {
     let (e, r, rho, g): (f64, f64, f64, f64) = (5e10, 5e-4, 6450.0, 9.81);
     let ei = e * std::f64::consts::PI * r.powi(4) / 4.0;
     let q = rho * std::f64::consts::PI * r * r * g;
-    let el = surgbench_comparisons::elastica::solve(0.3, ei, q, 0.0, 4000).unwrap();
+    let el = surgbench_comparisons::references::elastica::solve(0.3, ei, q, 0.0, 4000).unwrap();
     let ref_tip = v["reference_tip"].as_array().unwrap();
     assert!((ref_tip[0].as_f64().unwrap() - el.tip().0).abs() < 1e-12);
     assert!((ref_tip[2].as_f64().unwrap() - el.tip().1).abs() < 1e-12);

@@ -47,14 +47,7 @@ pub fn models() -> Vec<Registered> {
 
 /// Every scenario, in report order.
 pub fn scenarios() -> Vec<&'static dyn Scenario> {
-    let mut v: Vec<&'static dyn Scenario> = vec![
-        &scenarios::rod::CantileverGravity,
-        &scenarios::rod::CantileverTipLoad,
-        &scenarios::rod::TorqueTransfer,
-    ];
-    v.extend(scenarios::tissue::all());
-    v.extend(scenarios::vessel::all());
-    v
+    scenarios::all()
 }
 
 /// Look a model up by id.

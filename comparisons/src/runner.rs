@@ -5,7 +5,7 @@
 //! scoring are outside it. Repeats rebuild the model from scratch and must
 //! reproduce the first run bit for bit, or the run is marked failed.
 
-use crate::scenario::{Params, Scenario, ScenarioRun, UsageError};
+use crate::scenario::{Params, Scenario, ScenarioRun, Scorer, UsageError};
 use nalgebra::UnitQuaternion;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -297,6 +297,9 @@ struct Repeat {
     trip: Option<(String, f64)>,
     series: Vec<Sample>,
     last: Observation,
+    /// The scenario's metrics of `last` with this repeat's run-wide sums
+    /// (`None` when `last` is not finite).
+    errors: Option<BTreeMap<String, f64>>,
 }
 
 fn run_repeat(
@@ -314,6 +317,7 @@ fn run_repeat(
     let e0 = first.energy.total();
     let mut hand = HandWork::new(scene);
     hand.record(&scene.control.command_at(0.0), &first);
+    let mut scorer = run.scorer();
     let mut rep = Repeat {
         steps: 0,
         wall_s: 0.0,
@@ -329,8 +333,9 @@ fn run_repeat(
         trip: None,
         series: Vec::new(),
         last: first,
+        errors: None,
     };
-    let sample = |obs: &Observation, run: &dyn ScenarioRun| -> Sample {
+    let sample = |obs: &Observation, scorer: &dyn Scorer| -> Sample {
         let tip = obs.rods.first().map(|r| r.tip()).unwrap_or_default();
         Sample {
             t: obs.time,
@@ -338,11 +343,11 @@ fn run_repeat(
             hand_force: [obs.hand_force.x, obs.hand_force.y, obs.hand_force.z],
             hand_torque: [obs.hand_torque.x, obs.hand_torque.y, obs.hand_torque.z],
             energy: obs.energy.total(),
-            error: run.score(obs).get(primary).copied().unwrap_or(f64::NAN),
+            error: scorer.score(obs).get(primary).copied().unwrap_or(f64::NAN),
         }
     };
     if record {
-        rep.series.push(sample(&rep.last, run));
+        rep.series.push(sample(&rep.last, scorer.as_ref()));
     }
     for k in 0..max_steps {
         let t = (k + 1) as f64 * dt;
@@ -367,7 +372,7 @@ fn run_repeat(
             }
         }
         let obs = model.observe();
-        run.observe_step(&obs);
+        scorer.observe_step(&obs);
         hand.record(&cmd, &obs);
         if let Some(w) = watchdog(&obs, run, e0, hand.work, opts) {
             rep.trip = Some((w, t));
@@ -379,13 +384,16 @@ fn run_repeat(
             .settle
             .is_some_and(|s| k + 1 >= MIN_SETTLE_STEPS && t >= s.min_time && obs.max_speed() < s.velocity_tol);
         if record && (k % every == every - 1 || settled || k + 1 == max_steps) {
-            rep.series.push(sample(&obs, run));
+            rep.series.push(sample(&obs, scorer.as_ref()));
         }
         rep.last = obs;
         if settled {
             rep.end = "settled".into();
             break;
         }
+    }
+    if rep.last.is_finite() {
+        rep.errors = Some(scorer.score(&rep.last));
     }
     rep
 }
@@ -492,8 +500,8 @@ pub fn run_single(
     if s.status.is_empty() {
         s.status = "ok".into();
     }
-    if rep.last.is_finite() {
-        s.errors = run.score(&rep.last);
+    if let Some(errors) = rep.errors {
+        s.errors = errors;
         // The model's own diagnostics, prefixed so they never shadow a
         // scenario metric.
         for (k, v) in diagnostics {

@@ -76,6 +76,80 @@ pub struct ParamSpec {
     pub doc: &'static str,
 }
 
+impl ParamSpec {
+    /// A parameter: name, default (SI), unit, admissible range, one line.
+    pub const fn new(name: &'static str, default: f64, unit: &'static str, range: Range, doc: &'static str) -> Self {
+        Self {
+            name,
+            default,
+            unit,
+            range,
+            doc,
+        }
+    }
+}
+
+/// `a == b` in a constant context: `params!` checks at compile time that
+/// each field is named as its [`ParamSpec`].
+pub const fn same_name(a: &str, b: &str) -> bool {
+    let (a, b) = (a.as_bytes(), b.as_bytes());
+    if a.len() != b.len() {
+        return false;
+    }
+    let mut i = 0;
+    while i < a.len() {
+        if a[i] != b[i] {
+            return false;
+        }
+        i += 1;
+    }
+    true
+}
+
+/// A scenario's parameters as a typed struct: one `f64` field per
+/// [`ParamSpec`], named as the spec (checked at compile time), in listing
+/// order. `NAME::SPECS` is the list `surgbench list` shows and
+/// [`Params::resolve`] validates against; `NAME::of(&params)` reads the
+/// resolved values, so a misspelt parameter is a compile error.
+///
+/// ```ignore
+/// params! {
+///     /// Parameters of `my-scene`.
+///     pub struct MyParams {
+///         length: ParamSpec::new("length", 0.1, "m", Range::Positive, "free length"),
+///     }
+/// }
+/// let p = MyParams::of(&Params::resolve("my-scene", MyParams::SPECS, &[])?);
+/// assert_eq!(p.length, 0.1);
+/// ```
+#[macro_export]
+macro_rules! params {
+    ($(#[$meta:meta])* $vis:vis struct $name:ident { $($field:ident : $spec:expr),* $(,)? }) => {
+        $(#[$meta])*
+        #[derive(Debug, Clone, Copy, PartialEq)]
+        $vis struct $name {
+            $(
+                #[doc = concat!("`", stringify!($field), "` (SI; unit, range and default in `SPECS`).")]
+                pub $field: f64,
+            )*
+        }
+        impl $name {
+            /// Name, default, unit and range of every parameter, in listing order.
+            pub const SPECS: &'static [$crate::scenario::ParamSpec] = &[$($spec),*];
+            /// The resolved values (defaults overlaid with the user's overrides).
+            pub fn of(p: &$crate::scenario::Params) -> Self {
+                Self { $($field: p.get(stringify!($field))),* }
+            }
+        }
+        const _: () = {
+            $(assert!(
+                $crate::scenario::same_name(stringify!($field), $spec.name),
+                concat!("params!: field `", stringify!($field), "` is not named as its ParamSpec")
+            );)*
+        };
+    };
+}
+
 /// Resolved parameter values: defaults overlaid with the user's overrides.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Params {
@@ -111,8 +185,9 @@ impl Params {
         })
     }
 
-    /// Value of a parameter (panics only on a programming error: a name the
-    /// scenario did not declare).
+    /// Value of a declared parameter. `params!` structs call it with their
+    /// specs' own names, which [`Params::resolve`] always fills; any other
+    /// name is a programming error and panics.
     pub fn get(&self, name: &str) -> f64 {
         match self.values.get(name) {
             Some(v) => *v,
@@ -153,13 +228,39 @@ pub fn parse_overrides<S: AsRef<str>>(pairs: &[S]) -> Result<Vec<(String, f64)>,
         .collect()
 }
 
+/// Error metrics of one observation (SI; names end in their unit or `_rel`).
+pub type Metrics = BTreeMap<String, f64>;
+
+/// Scores one run of a scenario: it is shown every step's observation in
+/// time order ([`Scorer::observe_step`]) and owns whatever run-wide sums
+/// its metrics need (time to reach, peak force, a force curve). A fresh
+/// scorer serves each run (and each repeat of it), so no state leaks
+/// between runs.
+///
+/// A scenario whose metrics depend on one observation alone scores with a
+/// closure: `Fn(&Observation) -> Metrics` is a [`Scorer`].
+pub trait Scorer {
+    /// Take in the observation after a step (time increases call to call).
+    fn observe_step(&mut self, obs: &Observation) {
+        let _ = obs;
+    }
+    /// Error metrics of `obs` against the reference, with the run-wide
+    /// metrics accumulated from the steps observed so far.
+    fn score(&self, obs: &Observation) -> Metrics;
+}
+
+impl<F: Fn(&Observation) -> Metrics> Scorer for F {
+    fn score(&self, obs: &Observation) -> Metrics {
+        self(obs)
+    }
+}
+
 /// One instantiated scenario: the scene and its reference.
 pub trait ScenarioRun: Send {
     /// The scene every model runs.
     fn scene(&self) -> &Scene;
-    /// Error metrics of an observation against the reference (SI; names end
-    /// in their unit or `_rel`).
-    fn score(&self, obs: &Observation) -> BTreeMap<String, f64>;
+    /// A fresh scorer for one run of this scene.
+    fn scorer(&self) -> Box<dyn Scorer + '_>;
     /// Energy scale (J): the energy growth watchdog trips past 10x this.
     fn energy_scale(&self) -> f64;
     /// Length scale (m): a node farther than 10x this from the origin trips
@@ -169,33 +270,34 @@ pub trait ScenarioRun: Send {
     fn reference_tip(&self) -> Option<[f64; 3]> {
         None
     }
-    /// Called with every step's observation, in time order, outside the timed
-    /// region: scenarios with run-wide metrics (time to reach, peak force)
-    /// accumulate them here. A time earlier than the last seen starts a new
-    /// run (repeats).
-    fn observe_step(&self, obs: &Observation) {
-        let _ = obs;
-    }
     /// Penetration (m) past which the penetration watchdog trips.
     fn penetration_limit(&self) -> f64 {
         f64::INFINITY
     }
 }
 
+/// What a scenario is, declared once: shown by `surgbench list`, written
+/// into every result row.
+#[derive(Debug, Clone, Copy)]
+pub struct ScenarioInfo {
+    /// Stable id, e.g. `cantilever-gravity`.
+    pub id: &'static str,
+    /// One line.
+    pub description: &'static str,
+    /// Which model family it exercises.
+    pub family: Family,
+    /// What the reference is, one line (shown in the report).
+    pub reference: &'static str,
+    /// Name of the headline error metric (a key of the scorer's metrics).
+    pub primary_error: &'static str,
+}
+
 /// A scenario of the catalogue.
 pub trait Scenario: Send + Sync {
-    /// Stable id, e.g. `cantilever-gravity`.
-    fn id(&self) -> &'static str;
-    /// One line.
-    fn description(&self) -> &'static str;
-    /// Which model family it exercises.
-    fn family(&self) -> Family;
-    /// Parameters with defaults.
+    /// Id, description, family, reference and headline metric.
+    fn info(&self) -> &'static ScenarioInfo;
+    /// Parameters with defaults (a `params!` struct's `SPECS`).
     fn params(&self) -> &'static [ParamSpec];
-    /// What the reference is, one line (shown in the report).
-    fn reference(&self) -> &'static str;
-    /// Name of the headline error metric (a key of `score`).
-    fn primary_error(&self) -> &'static str;
     /// Default fidelity sweep.
     fn sweep(&self) -> Vec<Fidelity>;
     /// A smaller sweep for `--quick`.
@@ -212,6 +314,26 @@ pub trait Scenario: Send + Sync {
     /// [`Scenario::instantiate_at`] at the default fidelity.
     fn instantiate(&self, params: &Params) -> Result<Box<dyn ScenarioRun>, UsageError> {
         self.instantiate_at(params, &Fidelity::default())
+    }
+    /// Stable id ([`ScenarioInfo::id`]).
+    fn id(&self) -> &'static str {
+        self.info().id
+    }
+    /// One line ([`ScenarioInfo::description`]).
+    fn description(&self) -> &'static str {
+        self.info().description
+    }
+    /// Model family ([`ScenarioInfo::family`]).
+    fn family(&self) -> Family {
+        self.info().family
+    }
+    /// The reference, one line ([`ScenarioInfo::reference`]).
+    fn reference(&self) -> &'static str {
+        self.info().reference
+    }
+    /// Headline error metric ([`ScenarioInfo::primary_error`]).
+    fn primary_error(&self) -> &'static str {
+        self.info().primary_error
     }
 }
 

@@ -5,12 +5,11 @@
 
 mod common;
 use common::body;
+use surgbench_comparisons::references::{hertz_contact_radius, hertz_force, sphere_force_exact};
 use surgbench_comparisons::registry;
 use surgbench_comparisons::runner::{RunOptions, run_single};
 use surgbench_comparisons::scenario::{Params, Scenario};
-use surgbench_comparisons::scenarios::tissue::{
-    self, SPHERE_DT, SphereIndentation, hertz_contact_radius, hertz_force, sphere_block_mesh, sphere_force_exact,
-};
+use surgbench_comparisons::scenarios::tissue::{self, SPHERE_DT, SphereIndentation, sphere_block_mesh};
 use surgbench_core::{Capability, Fidelity, ModelFactory, Observation, TissueObs, Vec3, mesh};
 
 fn params(overrides: &[(&str, f64)]) -> Params {
@@ -202,10 +201,10 @@ fn score_reads_the_quarter_force_and_penetration() {
             ..Default::default()
         }
     };
-    let m = run.score(&obs(f_ref / 4.0, 0.0));
+    let m = run.scorer().score(&obs(f_ref / 4.0, 0.0));
     assert!(m["force_error_rel"] <= 1e-12, "{m:?}");
     assert!(m["penetration_over_depth"] <= 1e-9, "{m:?}");
-    let m = run.score(&obs(f_ref / 2.0, 1e-9));
+    let m = run.scorer().score(&obs(f_ref / 2.0, 1e-9));
     assert!((m["force_error_rel"] - 1.0).abs() <= 1e-12, "{m:?}");
     // 1e-9 m over 1e-5 m, to the rounding of coordinates ~1e-3 m.
     assert!((m["penetration_over_depth"] - 1e-4).abs() <= 1e-8, "{m:?}");

@@ -10,13 +10,15 @@ use common::{body, level};
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
 use surgbench_comparisons::comparison::Comparison;
+use surgbench_comparisons::datasets::datasets_dir;
+use surgbench_comparisons::references;
+use surgbench_comparisons::references::BlockReference;
 use surgbench_comparisons::registry;
 use surgbench_comparisons::runner::{RunOptions, RunSummary, run_single};
 use surgbench_comparisons::scenario::{Params, Scenario, ScenarioRun};
 use surgbench_comparisons::scenarios::tissue::{
-    self, BlockCompression, BlockReference, CubeFrame, LameTube, TRUTH_CUBE_EDGE, TruthCube, VolumePreservation,
+    self, BlockCompression, CubeFrame, LameTube, TRUTH_CUBE_EDGE, TruthCube, VolumePreservation,
 };
-use surgbench_comparisons::scenarios::vessel::datasets_dir;
 use surgbench_core::mesh::{self, truth_cube};
 use surgbench_core::rng::SplitMix64;
 use surgbench_core::{Capability, Family, Fidelity, Mat3, Observation, TetMesh, TissueObs, Vec3};
@@ -109,7 +111,7 @@ fn every_tissue_scenario_instantiates_validates_and_needs_what_it_expects() {
         let at_default = sc.instantiate_at(&p, &level(tissue::DEFAULT_LEVEL)).unwrap();
         assert_eq!(body(at_default.as_ref()).mesh, body(run.as_ref()).mesh, "{id}");
         // The primary metric is scored on an undeformed observation.
-        let m = run.score(&observe(run.as_ref(), |x| *x));
+        let m = run.scorer().score(&observe(run.as_ref(), |x| *x));
         assert!(
             m.contains_key(sc.primary_error()),
             "{id}: {:?}",
@@ -117,7 +119,7 @@ fn every_tissue_scenario_instantiates_validates_and_needs_what_it_expects() {
         );
         assert_eq!(m["inverted_elements"], 0.0, "{id}");
         // A mismatched observation is not scored.
-        assert!(run.score(&Observation::default()).is_empty(), "{id}");
+        assert!(run.scorer().score(&Observation::default()).is_empty(), "{id}");
         // Sweep over mesh levels; past the finest a usage error.
         let levels: Vec<_> = sc.sweep().iter().map(|f| f.mesh_level).collect();
         assert_eq!(levels, vec![Some(0), Some(1), Some(2), Some(3)], "{id}");
@@ -230,18 +232,18 @@ fn block_scores_the_plate_force_against_the_reference() {
         .unwrap();
     let mut obs = observe(run.as_ref(), |x| *x);
     obs.hand_force = Vec3::new(0.0, 0.0, f_ref);
-    let m = run.score(&obs);
+    let m = run.scorer().score(&obs);
     assert_eq!(m["force_error_rel"], 0.0, "{m:?}");
     assert_eq!(m["reference_force_n"], f_ref);
     obs.hand_force = Vec3::new(0.05 * f_ref, 0.0, 1.1 * f_ref);
-    let m = run.score(&obs);
+    let m = run.scorer().score(&obs);
     // (1.1 F - F) / F with one rounding of each product.
     assert!((m["force_error_rel"] - 0.1).abs() < 1e-14, "{m:?}");
     assert!((m["force_ratio"] - 1.1).abs() < 1e-14, "{m:?}");
     assert!((m["lateral_force_rel"] - 0.05).abs() < 1e-15, "{m:?}");
     // A pull (wrong sign) is an error of 2, not 0.
     obs.hand_force = Vec3::new(0.0, 0.0, -f_ref);
-    assert_eq!(run.score(&obs)["force_error_rel"], 2.0);
+    assert_eq!(run.scorer().score(&obs)["force_error_rel"], 2.0);
 }
 
 // ---------------------------------------------------------------------------
@@ -263,7 +265,7 @@ fn lame_closed_form_satisfies_equilibrium_and_both_traction_conditions() {
     // (Navier in polar form), sigma_r(a) = -p, sigma_r(b) = 0 with
     // sigma_r = (lambda + 2 mu) u' + lambda u / r.
     let (a, b, p, e, nu) = (0.01, 0.02, 100.0, 1e4, 0.3);
-    let u = |r: f64| tissue::lame_radial_displacement(r, a, b, p, e, nu);
+    let u = |r: f64| references::lame_radial_displacement(r, a, b, p, e, nu);
     let lam = e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
     let mu = e / (2.0 * (1.0 + nu));
     let h = 1e-5 * a;
@@ -305,10 +307,10 @@ fn lame_closed_form_matches_the_committed_scikit_fem_reference() {
         .map(|l| l.split(',').map(|c| c.trim().parse().unwrap()).collect())
         .collect();
     assert_eq!(rows.len(), 11);
-    let ua = tissue::lame_radial_displacement(a, a, b, p, e, nu);
+    let ua = references::lame_radial_displacement(a, a, b, p, e, nu);
     let mut worst: f64 = 0.0;
     for r in &rows {
-        let exact = tissue::lame_radial_displacement(r[0], a, b, p, e, nu);
+        let exact = references::lame_radial_displacement(r[0], a, b, p, e, nu);
         // The CSV prints 10 significant digits: 5e-10 relative.
         assert!(
             (r[2] - exact).abs() < 1e-9 * exact,
@@ -396,12 +398,12 @@ fn lame_scores_the_exact_field_as_zero_and_perturbations_as_expected() {
         p.get("youngs_modulus"),
         p.get("poisson_ratio"),
     );
-    let u = |r: f64| tissue::lame_radial_displacement(r, a, b, pr, e, nu);
+    let u = |r: f64| references::lame_radial_displacement(r, a, b, pr, e, nu);
     let radial = |x: &Vec3, s: f64| {
         let r = x.xy().norm();
         x + Vec3::new(x.x / r, x.y / r, 0.0) * (s * u(r))
     };
-    let m = run.score(&observe(run.as_ref(), |x| radial(x, 1.0)));
+    let m = run.scorer().score(&observe(run.as_ref(), |x| radial(x, 1.0)));
     // Round-off of x + u with |x| = 2e-2, u = 2e-5: 1e-13 of u(a).
     for k in [
         "rms_radial_error_rel",
@@ -414,7 +416,7 @@ fn lame_scores_the_exact_field_as_zero_and_perturbations_as_expected() {
     // Scaled by 1.05: radial error 0.05 u(R) at every node.
     let nodes = &body(run.as_ref()).mesh.nodes;
     let rms_u = (nodes.iter().map(|x| u(x.xy().norm()).powi(2)).sum::<f64>() / nodes.len() as f64).sqrt();
-    let m = run.score(&observe(run.as_ref(), |x| radial(x, 1.05)));
+    let m = run.scorer().score(&observe(run.as_ref(), |x| radial(x, 1.05)));
     let want = 0.05 * rms_u / u(a);
     assert!(
         (m["rms_radial_error_rel"] / want - 1.0).abs() < 1e-6,
@@ -425,7 +427,7 @@ fn lame_scores_the_exact_field_as_zero_and_perturbations_as_expected() {
     assert!((m["max_radial_error_rel"] - 0.05).abs() < 1e-6, "{m:?}");
     assert!((m["inner_wall_error_rel"] - 0.05).abs() < 1e-6, "{m:?}");
     // An axial shift of 0.1 u(a): no radial error, vector error 0.1.
-    let m = run.score(&observe(run.as_ref(), |x| {
+    let m = run.scorer().score(&observe(run.as_ref(), |x| {
         radial(x, 1.0) + Vec3::new(0.0, 0.0, 0.1 * u(a))
     }));
     assert!(m["rms_radial_error_rel"] < 1e-9, "{m:?}");
@@ -467,18 +469,20 @@ fn volume_scores_are_exact_for_linear_maps() {
     let run = sc.instantiate_at(&params(&sc, &[]), &level(0)).unwrap();
     // Isochoric shear + stretch (det = 1): tets stay tets, volume exact.
     let f = Mat3::new(1.2, 0.3, 0.0, 0.0, 1.0 / 1.2, 0.1, 0.0, 0.0, 1.0);
-    let m = run.score(&observe(run.as_ref(), |x| f * x));
+    let m = run.scorer().score(&observe(run.as_ref(), |x| f * x));
     assert!(m["volume_change_rel"] < 1e-14, "{m:?}");
     assert_eq!(m["inverted_elements"], 0.0);
     // Uniform dilation by 1 %: 1.01^3 - 1.
     let mut obs = observe(run.as_ref(), |x| x * 1.01);
     obs.tissues[0].volume_error = 0.030301;
-    let m = run.score(&obs);
+    let m = run.scorer().score(&obs);
     assert!((m["volume_change_rel"] - 0.030301).abs() < 1e-14, "{m:?}");
     assert!((m["max_element_volume_change_rel"] - 0.030301).abs() < 1e-14, "{m:?}");
     assert!(m["reported_volume_mismatch_rel"] < 1e-14, "{m:?}");
     // A mirror inverts every element.
-    let m = run.score(&observe(run.as_ref(), |x| Vec3::new(x.x, x.y, -x.z)));
+    let m = run
+        .scorer()
+        .score(&observe(run.as_ref(), |x| Vec3::new(x.x, x.y, -x.z)));
     let n = body(run.as_ref()).mesh.tets.len() as f64;
     assert_eq!(m["inverted_elements"], n);
     assert!((m["volume_ratio"] + 1.0).abs() < 1e-14, "{m:?}");
@@ -489,7 +493,7 @@ fn volume_scores_are_exact_for_linear_maps() {
 // ---------------------------------------------------------------------------
 
 fn cube() -> truth_cube::TruthCube {
-    tissue::load_truth_cube(&datasets_dir()).unwrap()
+    surgbench_comparisons::datasets::load_truth_cube(&datasets_dir()).unwrap()
 }
 
 #[test]
@@ -572,7 +576,7 @@ fn truth_cube_scores_a_resting_cube_as_the_measured_motion_and_affine_fields_exa
         );
         // Nothing moves: the error is the measured motion, computed in the
         // CT frame (the fitted rotation keeps lengths).
-        let m = run.score(&observe(run.as_ref(), |x| *x));
+        let m = run.scorer().score(&observe(run.as_ref(), |x| *x));
         let n = c.beads.len() as f64;
         let moved: Vec<f64> = c
             .beads
@@ -590,7 +594,7 @@ fn truth_cube_scores_a_resting_cube_as_the_measured_motion_and_affine_fields_exa
         // Uniform compression about the base: P1 reproduces it, so the
         // prediction at each bead is the affine map of the bead.
         let a = Mat3::from_diagonal(&Vec3::new(1.0 + 0.5 * strain, 1.0 + 0.5 * strain, 1.0 - strain));
-        let m = run.score(&observe(run.as_ref(), |x| a * x));
+        let m = run.scorer().score(&observe(run.as_ref(), |x| a * x));
         let err: Vec<Vec3> = f.beads[0]
             .iter()
             .zip(&f.beads[level])

@@ -220,7 +220,7 @@ fn branch_selection_j_tip_starts_inside_and_sessions_load() {
         }
         // The clamp's local y (the J's side) starts pointing up (+z).
         assert!((rod.base.rotation * Vec3::y() - Vec3::z()).norm() < 1e-12);
-        let m = r.score(&Observation::default());
+        let m = r.scorer().score(&Observation::default());
         assert!(m.is_empty(), "no rod, no score");
     }
 }

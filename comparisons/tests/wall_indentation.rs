@@ -6,11 +6,12 @@
 mod common;
 use common::{body, level, observe};
 use std::path::Path;
+use surgbench_comparisons::datasets::datasets_dir;
+use surgbench_comparisons::references::WallReference;
 use surgbench_comparisons::registry;
 use surgbench_comparisons::runner::{RunOptions, run_single};
 use surgbench_comparisons::scenario::{Params, Scenario};
-use surgbench_comparisons::scenarios::tissue::{self, WallIndentation, WallReference};
-use surgbench_comparisons::scenarios::vessel::datasets_dir;
+use surgbench_comparisons::scenarios::tissue::{self, WallIndentation};
 use surgbench_core::Vec3;
 
 fn params(overrides: &[(&str, f64)]) -> Params {
@@ -211,22 +212,26 @@ fn wall_sphere_scores_force_surface_and_penetration() {
         .unwrap();
     let f_ref = r.force(depth, e).unwrap();
     // The quarter pushes the sphere back along -x with a quarter of the force.
-    let m = run.score(&observe(run.as_ref(), 1.0, Vec3::new(-0.25 * f_ref, 0.0, 0.0), |_| {
-        Vec3::zeros()
-    }));
+    let m = run
+        .scorer()
+        .score(&observe(run.as_ref(), 1.0, Vec3::new(-0.25 * f_ref, 0.0, 0.0), |_| {
+            Vec3::zeros()
+        }));
     assert!(m["force_error_rel"] < 1e-12, "{m:?}");
     // Nothing moved: the whole reference displacement is the error, and the
     // sphere (at full travel) sits `depth` inside the wall at the tip.
     assert!((m["surface_error_rel"] - 1.0).abs() < 1e-12, "{m:?}");
     assert!((m["penetration_over_depth"] - 1.0).abs() < 1e-9, "{m:?}");
-    let m = run.score(&observe(run.as_ref(), 1.0, Vec3::new(-0.3 * f_ref, 0.0, 0.0), |_| {
-        Vec3::zeros()
-    }));
+    let m = run
+        .scorer()
+        .score(&observe(run.as_ref(), 1.0, Vec3::new(-0.3 * f_ref, 0.0, 0.0), |_| {
+            Vec3::zeros()
+        }));
     assert!((m["force_ratio"] - 1.2).abs() < 1e-12, "{m:?}");
     // Every node moved rigidly by the full travel: the inner wall clears
     // the sphere (no penetration), and u_r = depth cos(theta) is the error
     // against the reference at each probe.
-    let m = run.score(&observe(run.as_ref(), 1.0, Vec3::zeros(), |_| {
+    let m = run.scorer().score(&observe(run.as_ref(), 1.0, Vec3::zeros(), |_| {
         Vec3::new(depth, 0.0, 0.0)
     }));
     assert!(m["penetration_over_depth"] < 1e-9, "{m:?}");

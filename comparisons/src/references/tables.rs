@@ -1,0 +1,91 @@
+//! Reading the tables a reference ships: numeric CSV with a header, and the
+//! `[parameters]` of its `meta.toml`.
+
+use crate::scenario::UsageError;
+use std::path::{Path, PathBuf};
+
+/// Read `[parameters] key` of a reference `meta.toml`.
+pub fn meta_number(meta: &toml::Table, file: &Path, key: &str) -> Result<f64, UsageError> {
+    meta.get("parameters")
+        .and_then(|t| t.get(key))
+        .and_then(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
+        .ok_or_else(|| UsageError(format!("{}: no number `parameters.{key}`", file.display())))
+}
+
+/// Read and parse `<dir>/meta.toml`; returns the table and its path.
+pub fn read_meta(dir: &Path) -> Result<(toml::Table, PathBuf), UsageError> {
+    let path = dir.join("meta.toml");
+    let text =
+        std::fs::read_to_string(&path).map_err(|e| UsageError(format!("cannot read {}: {e}", path.display())))?;
+    let meta = toml::from_str(&text).map_err(|e| UsageError(format!("{}: {}", path.display(), e.message())))?;
+    Ok((meta, path))
+}
+
+/// The named `columns` of a numeric CSV whose first line is a header, in
+/// the order asked, one `Vec` per row; a missing column, a short row or a
+/// non-finite number is an error naming file, line and column.
+pub fn read_csv_columns(file: &Path, columns: &[&str]) -> Result<Vec<Vec<f64>>, UsageError> {
+    let text = std::fs::read_to_string(file).map_err(|e| UsageError(format!("cannot read {}: {e}", file.display())))?;
+    let mut lines = text.lines().enumerate();
+    let header: Vec<&str> = lines
+        .next()
+        .map(|(_, h)| h.split(',').map(str::trim).collect())
+        .unwrap_or_default();
+    let index: Vec<usize> = columns
+        .iter()
+        .map(|c| {
+            header.iter().position(|h| h == c).ok_or_else(|| {
+                UsageError(format!(
+                    "{}: missing column `{c}` (header: `{}`)",
+                    file.display(),
+                    header.join(",")
+                ))
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    let mut rows = Vec::new();
+    for (ln, line) in lines {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let row: Vec<f64> = line
+            .split(',')
+            .map(|c| c.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|_| UsageError(format!("{}:{}: not a row of numbers: `{line}`", file.display(), ln + 1)))?;
+        if row.len() != header.len() || !row.iter().all(|v| v.is_finite()) {
+            return Err(UsageError(format!(
+                "{}:{}: expected {} finite numbers, got `{line}`",
+                file.display(),
+                ln + 1,
+                header.len()
+            )));
+        }
+        rows.push(index.iter().map(|&i| row[i]).collect());
+    }
+    Ok(rows)
+}
+
+/// Two named columns as `(x, y)` pairs with `x` strictly increasing and at
+/// least two rows: a tabulated curve.
+pub fn read_curve(file: &Path, x: &str, y: &str) -> Result<Vec<(f64, f64)>, UsageError> {
+    let rows: Vec<(f64, f64)> = read_csv_columns(file, &[x, y])?
+        .into_iter()
+        .map(|r| (r[0], r[1]))
+        .collect();
+    if rows.len() < 2 || rows.windows(2).any(|w| !(w[1].0 > w[0].0)) {
+        return Err(UsageError(format!(
+            "{}: needs >= 2 rows of increasing `{x}`",
+            file.display()
+        )));
+    }
+    Ok(rows)
+}
+
+/// Linear interpolation of a tabulated curve (increasing `x`); `None`
+/// outside its range.
+pub fn interpolate(rows: &[(f64, f64)], x: f64) -> Option<f64> {
+    let i = rows.windows(2).position(|w| x >= w[0].0 && x <= w[1].0)?;
+    let (a, b) = (rows[i], rows[i + 1]);
+    Some(a.1 + (b.1 - a.1) * (x - a.0) / (b.0 - a.0))
+}

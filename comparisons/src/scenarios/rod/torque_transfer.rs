@@ -1,0 +1,143 @@
+//! `torque-transfer`: a straight rod whose clamp turns about its axis; the
+//! tip's twist must follow (closed form: uniform static twist).
+
+use super::{DENSITY, DURATION, LENGTH, POISSON, RADIUS, RodCase, SETTLE, YOUNG, rod_case};
+use crate::params;
+use crate::scenario::{
+    Metrics, ParamSpec, Params, Range, Scenario, ScenarioInfo, ScenarioRun, Scorer, UsageError, sweep_of,
+};
+use std::f64::consts::PI;
+use surgbench_core::frames::signed_angle;
+use surgbench_core::{ControlTimeline, Family, Fidelity, Observation, Scene, Vec3};
+
+/// Straight rod, base rotated by a prescribed angle: the tip must follow.
+pub struct TorqueTransfer;
+
+const INFO: ScenarioInfo = ScenarioInfo {
+    id: "torque-transfer",
+    description: "straight rod, clamp rotated about its axis: the tip twist must follow",
+    family: Family::Rod,
+    reference: "closed form: uniform static twist, tip angle = base_twist + T L/(GJ)",
+    primary_error: "twist_error_rad",
+};
+
+params! {
+    /// Parameters of `torque-transfer`.
+    pub struct TorqueParams {
+        length: LENGTH,
+        radius: RADIUS,
+        youngs_modulus: YOUNG,
+        poisson_ratio: POISSON,
+        density: DENSITY,
+        base_twist: ParamSpec::new(
+            "base_twist",
+            PI / 2.0,
+            "rad",
+            Range::Any,
+            "rotation of the clamp about the rod axis",
+        ),
+        tip_torque: ParamSpec::new(
+            "tip_torque",
+            0.0,
+            "N m",
+            Range::Any,
+            "dead axial torque at the tip (twist rate T/(GJ)); keep |T| L/(EI) well under pi",
+        ),
+        settle_tol: SETTLE,
+        duration: DURATION,
+    }
+}
+
+struct TorqueRun {
+    scene: Scene,
+    length: f64,
+    twist: f64,
+    torque: f64,
+    gj: f64,
+}
+
+/// Wrap an angle difference to (-pi, pi].
+fn wrap(a: f64) -> f64 {
+    let mut x = a.rem_euclid(2.0 * PI);
+    if x > PI {
+        x -= 2.0 * PI;
+    }
+    x
+}
+
+impl TorqueRun {
+    fn score(&self, obs: &Observation) -> Metrics {
+        let mut m = Metrics::new();
+        let Some(r) = obs.rods.first() else {
+            return m;
+        };
+        let f = r.tip_frame();
+        let (d1, t) = (f.column(0).into_owned(), f.column(2).into_owned());
+        // Twist of the tip's material frame relative to the unrotated base
+        // frame (d1 = +y), about the (straight) rod axis.
+        let angle = signed_angle(&Vec3::y(), &d1, &t);
+        m.insert("twist_error_rad".into(), wrap(angle - self.twist).abs());
+        m.insert(
+            "tip_position_error_m".into(),
+            (r.tip() - Vec3::new(self.length, 0.0, 0.0)).norm(),
+        );
+        let t_ref = Vec3::new(self.torque, 0.0, 0.0);
+        m.insert("hand_torque_error_nm".into(), (obs.hand_torque - t_ref).norm());
+        m.insert("max_stretch".into(), r.max_stretch.abs());
+        m
+    }
+}
+
+impl ScenarioRun for TorqueRun {
+    fn scene(&self) -> &Scene {
+        &self.scene
+    }
+    fn scorer(&self) -> Box<dyn Scorer + '_> {
+        Box::new(|obs: &Observation| self.score(obs))
+    }
+    fn energy_scale(&self) -> f64 {
+        (self.gj / self.length) * (1.0 + self.twist * self.twist)
+    }
+    fn length_scale(&self) -> f64 {
+        self.length
+    }
+    fn reference_tip(&self) -> Option<[f64; 3]> {
+        Some([self.length, 0.0, 0.0])
+    }
+}
+
+impl Scenario for TorqueTransfer {
+    fn info(&self) -> &'static ScenarioInfo {
+        &INFO
+    }
+    fn params(&self) -> &'static [ParamSpec] {
+        TorqueParams::SPECS
+    }
+    fn sweep(&self) -> Vec<Fidelity> {
+        sweep_of("segments", &[10.0, 20.0, 40.0, 80.0])
+    }
+    fn instantiate_at(&self, params: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
+        let p = TorqueParams::of(params);
+        let c = rod_case!(p);
+        let base = p.base_twist;
+        let torque = p.tip_torque;
+        if (torque * c.length / c.ei()).abs() > 1.0 {
+            return Err(UsageError(format!(
+                "tip_torque: |T| L/(EI) = {:.3} > 1 approaches torsional buckling of the cantilever; the straight-rod closed form no longer applies",
+                (torque * c.length / c.ei()).abs()
+            )));
+        }
+        let mut scene = c.scene(INFO.id, p.duration, p.settle_tol);
+        scene.control = ControlTimeline::hold_rotation(base);
+        let mut body = c.body();
+        body.tip_torque = Vec3::new(torque, 0.0, 0.0);
+        scene.bodies.push(body.into());
+        Ok(Box::new(TorqueRun {
+            scene,
+            length: c.length,
+            twist: base + torque * c.length / c.gj(),
+            torque,
+            gj: c.gj(),
+        }))
+    }
+}

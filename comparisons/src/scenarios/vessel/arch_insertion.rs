@@ -1,0 +1,262 @@
+//! `arch-insertion`: a guidewire pushed over an aortic arch with
+//! intermittent rotations; reach, time to reach, penetration, hand force and
+//! (with the cached converged trajectory) tip error.
+
+use super::*;
+use crate::params;
+use crate::references::{TipTrajectory, cached_reference};
+use crate::scenario::{ParamSpec, Params, Range, Scenario, ScenarioInfo, ScenarioRun, Scorer, UsageError, sweep_of};
+use std::sync::Arc;
+use surgbench_core::vessel::{self, Vessel};
+use surgbench_core::{Family, Fidelity, Scene};
+
+/// Push a guidewire up the descending aorta, over the arch and down the
+/// ascending aorta at constant speed with intermittent quarter turns.
+pub struct ArchInsertion {
+    /// Datasets folder holding `reference/arch-insertion/tip_trajectory.csv`
+    /// (`None`: [`datasets_dir`](crate::datasets::datasets_dir)).
+    pub datasets: Option<&'static str>,
+}
+
+impl ArchInsertion {
+    /// The registered instance (reference from [`datasets_dir`](crate::datasets::datasets_dir)).
+    pub const DEFAULT: Self = Self { datasets: None };
+}
+
+/// Default J length (m) of the arch wire: half a turn of the 3 mm J common
+/// on 0.035-inch access guidewires (`j_curvature = 333 1/m`); the default
+/// tip is straight (`j_curvature = 0`), as the scene is specified.
+const ARCH_J_LENGTH: f64 = PI * 3e-3;
+
+params! {
+    /// Parameters of `arch-insertion`.
+    pub struct ArchParams {
+        wire_radius: P_WIRE_RADIUS,
+        body_youngs_modulus: P_BODY_E,
+        tip_youngs_modulus: P_TIP_E,
+        tip_length: P_TIP_LEN,
+        density: P_DENSITY,
+        poisson_ratio: P_POISSON,
+        friction_static: P_MU_S,
+        friction_dynamic: P_MU_D,
+        gravity: P_GRAVITY,
+        insertion_speed: ParamSpec::new("insertion_speed", 0.02, "m/s", Range::Positive, "constant feed speed"),
+        j_curvature: ParamSpec::new(
+            "j_curvature",
+            0.0,
+            "1/m",
+            Range::NonNegative,
+            "rest curvature of the tip's J (towards the clamp's local y; 0: straight tip)",
+        ),
+        j_length: ParamSpec::new(
+            "j_length",
+            ARCH_J_LENGTH,
+            "m",
+            Range::Positive,
+            "length of the curved J at the tip (within the soft tip)",
+        ),
+        initial_length: ParamSpec::new(
+            "initial_length",
+            0.2,
+            "m",
+            Range::Positive,
+            "free wire length at t = 0: the tip starts 5 mm short of the arch (the clamp needs the 150 mm of straight below it for the push)",
+        ),
+        rotation_step: ParamSpec::new(
+            "rotation_step",
+            PI / 2.0,
+            "rad",
+            Range::Any,
+            "size of each intermittent rotation (alternating sign)",
+        ),
+        rotation_interval: ParamSpec::new(
+            "rotation_interval",
+            1.0,
+            "s",
+            Range::Positive,
+            "time between rotation starts",
+        ),
+        rotation_time: ParamSpec::new("rotation_time", 0.2, "s", Range::Positive, "duration of each rotation"),
+        target_depth: ParamSpec::new(
+            "target_depth",
+            0.01,
+            "m",
+            Range::NonNegative,
+            "target plane: this far into the ascending aorta",
+        ),
+        duration: ParamSpec::new("duration", 7.5, "s", Range::Positive, "simulated time"),
+    }
+}
+
+struct ArchRun {
+    scene: Scene,
+    vessel: Arc<Vessel>,
+    wire_radius: f64,
+    target_s: f64,
+    reference: Option<TipTrajectory>,
+    energy: f64,
+}
+
+/// Insertion ramp with alternating rotations every `interval` seconds.
+fn push_with_rotations(speed: f64, duration: f64, step: f64, interval: f64, rot_time: f64) -> ControlTimeline {
+    let mut keys = vec![(0.0, 0.0, 0.0)];
+    let mut rot = 0.0;
+    let mut k = 1;
+    loop {
+        let t0 = k as f64 * interval;
+        let t1 = t0 + rot_time.min(0.9 * interval);
+        if t1 >= duration {
+            break;
+        }
+        keys.push((t0, speed * t0, rot));
+        rot += if k % 2 == 1 { step } else { -step };
+        keys.push((t1, speed * t1, rot));
+        k += 1;
+    }
+    keys.push((duration, speed * duration, rot));
+    timeline(&keys)
+}
+
+/// One arch run's sums: the common ones, when the tip first passed the
+/// target plane, and the tip error against the cached trajectory.
+struct ArchScorer<'a> {
+    run: &'a ArchRun,
+    common: Common,
+    reached_at: Option<f64>,
+    ref_err2: f64,
+    ref_err_max: f64,
+}
+
+impl ArchRun {
+    /// Arclength of the tip's projection on the trunk (m) and whether it is
+    /// past the target plane, outside every branch lumen.
+    fn progress(&self, tip: &Vec3) -> (f64, bool) {
+        let (lumen, _) = self.vessel.deepest(tip);
+        let s = self.vessel.trunk.project(tip).s;
+        (s, lumen.is_none() && s >= self.target_s)
+    }
+    /// Tip error (m) against the cached trajectory at `t`, if there is one.
+    fn ref_err(&self, tip: &Vec3, t: f64) -> Option<f64> {
+        self.reference.as_ref().map(|r| (tip - r.at(t)).norm())
+    }
+}
+
+impl Scorer for ArchScorer<'_> {
+    fn observe_step(&mut self, obs: &Observation) {
+        let Some(tip) = tip(obs) else { return };
+        let run = self.run;
+        self.common.add(run.vessel.as_ref(), obs, run.wire_radius);
+        if run.progress(&tip).1 && self.reached_at.is_none() {
+            self.reached_at = Some(obs.time);
+        }
+        if let Some(e) = run.ref_err(&tip, obs.time) {
+            self.ref_err2 += e * e;
+            self.ref_err_max = self.ref_err_max.max(e);
+        }
+    }
+    fn score(&self, obs: &Observation) -> Metrics {
+        let Some(tip) = tip(obs) else { return Metrics::new() };
+        let mut m = self.common.metrics(obs);
+        m.insert("tip_progress_m".into(), self.run.progress(&tip).0);
+        m.insert("reached".into(), self.reached_at.is_some() as u8 as f64);
+        if let Some(r) = self.reached_at {
+            m.insert("time_to_reach_s".into(), r);
+        }
+        m.insert("reference_available".into(), self.run.reference.is_some() as u8 as f64);
+        if let Some(e) = self.run.ref_err(&tip, obs.time) {
+            m.insert("tip_error_m".into(), e);
+            m.insert(
+                "tip_error_rms_m".into(),
+                (self.ref_err2 / self.common.samples.max(1) as f64).sqrt(),
+            );
+            m.insert("tip_error_max_m".into(), self.ref_err_max);
+        }
+        m
+    }
+}
+
+impl ScenarioRun for ArchRun {
+    fn scene(&self) -> &Scene {
+        &self.scene
+    }
+    fn scorer(&self) -> Box<dyn Scorer + '_> {
+        Box::new(ArchScorer {
+            run: self,
+            common: Common::default(),
+            reached_at: None,
+            ref_err2: 0.0,
+            ref_err_max: 0.0,
+        })
+    }
+    fn energy_scale(&self) -> f64 {
+        self.energy
+    }
+    fn length_scale(&self) -> f64 {
+        0.25
+    }
+    fn penetration_limit(&self) -> f64 {
+        0.5 * self.wire_radius
+    }
+}
+
+const INFO: ScenarioInfo = ScenarioInfo {
+    id: "arch-insertion",
+    description: "guidewire pushed over an aortic arch (25 mm lumen, 35 mm arch radius) with intermittent rotation",
+    family: Family::Rod,
+    reference: "converged DER tip trajectory cached in datasets/reference/arch-insertion/tip_trajectory.csv (default parameters only); without it only reach, time-to-reach, penetration and hand force are scored",
+    primary_error: "tip_error_m",
+};
+
+impl Scenario for ArchInsertion {
+    fn info(&self) -> &'static ScenarioInfo {
+        &INFO
+    }
+    fn params(&self) -> &'static [ParamSpec] {
+        ArchParams::SPECS
+    }
+    fn sweep(&self) -> Vec<Fidelity> {
+        sweep_of("segments", &[25.0, 50.0, 100.0, 200.0])
+    }
+    fn instantiate_at(&self, params: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
+        let p = ArchParams::of(params);
+        let wire = wire!(p);
+        check_lumen(wire.radius, vessel::AORTA_RADIUS, "aortic")?;
+        let l0 = p.initial_length;
+        if l0 + ENTRY_S > vessel::ARCH_DESCENDING {
+            return Err(UsageError(format!(
+                "initial_length {l0} m does not fit the {} m descending segment after the {ENTRY_S} m entry",
+                vessel::ARCH_DESCENDING
+            )));
+        }
+        let feed = p.insertion_speed * p.duration;
+        clamp_stays_in_straight(ENTRY_S + feed, vessel::ARCH_DESCENDING, "descending aorta")?;
+        let arch = Arc::new(vessel::aortic_arch());
+        let mut scene = Scene::empty(INFO.id);
+        scene.duration = p.duration;
+        scene.gravity = Vec3::new(0.0, 0.0, -p.gravity);
+        let (jl, kappa) = (p.j_length, p.j_curvature);
+        scene
+            .bodies
+            .push(wire.rod_with_j(l0, arch.trunk.frame_at(ENTRY_S), jl, kappa)?.into());
+        scene.environment.vessel = Some(arch.clone());
+        scene.environment.contact = contact(p.friction_static, p.friction_dynamic, wire.radius)?;
+        scene.control = push_with_rotations(
+            p.insertion_speed,
+            scene.duration,
+            p.rotation_step,
+            p.rotation_interval,
+            p.rotation_time,
+        );
+        scene.validate().map_err(UsageError)?;
+        let total = l0 + p.insertion_speed * scene.duration;
+        Ok(Box::new(ArchRun {
+            scene,
+            target_s: vessel::ARCH_DESCENDING + PI * vessel::ARCH_RADIUS + p.target_depth,
+            wire_radius: wire.radius,
+            reference: cached_reference(INFO.id, params, self.datasets)?,
+            // Bending the whole wire to the arch radius.
+            energy: wire.body_ei() * total / (vessel::ARCH_RADIUS * vessel::ARCH_RADIUS),
+            vessel: arch,
+        }))
+    }
+}

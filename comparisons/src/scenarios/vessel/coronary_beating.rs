@@ -1,0 +1,128 @@
+//! `coronary-beating`: `coronary-tortuous` in a vessel swinging with the
+//! heart beat (a prescribed motion of the wall).
+
+use super::coronary_tortuous::{C_L0, C_MU_D, C_MU_S, C_PUSH, CoronaryParams, coronary_run};
+use super::*;
+use crate::params;
+use crate::scenario::{ParamSpec, Params, Range, Scenario, ScenarioInfo, ScenarioRun, UsageError, sweep_of};
+use std::sync::Arc;
+use surgbench_core::motion::CardiacMotion;
+use surgbench_core::{Family, Fidelity};
+
+/// The tortuous coronary on a beating heart: the lumen swings transversely
+/// ([`CardiacMotion`]) while the guidewire is pushed, pulled and rotated as
+/// in `coronary-tortuous`. The guiding catheter (the clamp) sits in the still
+/// proximal entry; past `motion_start` the vessel swings by up to
+/// `amplitude` along z at `heart_rate`, reaching full amplitude `motion_ramp`
+/// further on. The wall pushes the wire sideways twice a beat: a test of
+/// contact with a moving wall and of friction measured against it.
+pub struct CoronaryBeating;
+
+params! {
+    /// Parameters of `coronary-beating`: the coronary scene's and the heart
+    /// motion's.
+    pub struct BeatingParams {
+        wire_radius: P_WIRE_RADIUS,
+        body_youngs_modulus: P_BODY_E,
+        tip_youngs_modulus: P_TIP_E,
+        tip_length: P_TIP_LEN,
+        density: P_DENSITY,
+        poisson_ratio: P_POISSON,
+        friction_static: C_MU_S,
+        friction_dynamic: C_MU_D,
+        push_speed: C_PUSH,
+        initial_length: C_L0,
+        duration: ParamSpec::new(
+            "duration",
+            12.0,
+            "s",
+            Range::Positive,
+            "simulated time (6 s push/pull/rotate cycles as in coronary-tortuous)",
+        ),
+        amplitude: ParamSpec::new(
+            "amplitude",
+            4e-3,
+            "m",
+            Range::NonNegative,
+            "peak transverse swing of the moving vessel (heart motion: several mm, Shechter et al. 2004/2005)",
+        ),
+        heart_rate: ParamSpec::new("heart_rate", 1.2, "Hz", Range::Positive, "beats per second (72 per minute)"),
+        motion_start: ParamSpec::new(
+            "motion_start",
+            0.025,
+            "m",
+            Range::Positive,
+            "arclength along the entry where the swing begins (past the deepest clamp position, 20 mm by default)",
+        ),
+        motion_ramp: ParamSpec::new(
+            "motion_ramp",
+            0.025,
+            "m",
+            Range::Positive,
+            "length over which the swing grows to full amplitude",
+        ),
+    }
+}
+
+impl BeatingParams {
+    /// The coronary scene's parameters.
+    fn coronary(&self) -> CoronaryParams {
+        CoronaryParams {
+            wire_radius: self.wire_radius,
+            body_youngs_modulus: self.body_youngs_modulus,
+            tip_youngs_modulus: self.tip_youngs_modulus,
+            tip_length: self.tip_length,
+            density: self.density,
+            poisson_ratio: self.poisson_ratio,
+            friction_static: self.friction_static,
+            friction_dynamic: self.friction_dynamic,
+            push_speed: self.push_speed,
+            initial_length: self.initial_length,
+            duration: self.duration,
+        }
+    }
+}
+
+const INFO: ScenarioInfo = ScenarioInfo {
+    id: "coronary-beating",
+    description: "guidewire pushed, pulled and rotated in the tortuous coronary while the vessel swings 4 mm at 72 beats/min",
+    family: Family::Rod,
+    reference: "stability and penetration against the moving wall (geometry at each observation's time; no reference solution)",
+    primary_error: "max_penetration_m",
+};
+
+impl Scenario for CoronaryBeating {
+    fn info(&self) -> &'static ScenarioInfo {
+        &INFO
+    }
+    fn params(&self) -> &'static [ParamSpec] {
+        BeatingParams::SPECS
+    }
+    fn sweep(&self) -> Vec<Fidelity> {
+        sweep_of("segments", &[30.0, 60.0, 120.0])
+    }
+    fn instantiate_at(&self, params: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
+        let p = BeatingParams::of(params);
+        let (start, ramp) = (p.motion_start, p.motion_ramp);
+        let run = coronary_run(INFO.id, &p.coronary(), |deepest| {
+            if start <= deepest {
+                return Err(UsageError(format!(
+                    "motion_start {start} m must lie past the deepest clamp position {deepest:.3} m (the guiding catheter does not beat)"
+                )));
+            }
+            // The entry runs along +x from the origin; the swing is across it.
+            let m = CardiacMotion::new(
+                Vec3::zeros(),
+                Vec3::x(),
+                Vec3::z(),
+                start,
+                ramp,
+                p.amplitude,
+                p.heart_rate,
+            )
+            .map_err(UsageError)?;
+            Ok(Some(Arc::new(m)))
+        })?;
+        Ok(Box::new(run))
+    }
+}
