@@ -276,7 +276,7 @@ fn run_one(
         repeats,
         ..Default::default()
     };
-    let summary = runner::run_single(sc, &params, run.as_ref(), factory, &fid, &opts)?;
+    let summary = runner::run_single(sc, &params, &run, factory, &fid, &opts)?;
     let tmp =
         batch::temp_sibling(out).map_err(|e| Failure::Runtime(format!("cannot create {}: {e}", out.display())))?;
     runner::write_run_files(&tmp, &summary).map_err(|e| Failure::Runtime(format!("cannot write run files: {e}")))?;

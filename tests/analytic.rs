@@ -17,7 +17,7 @@ fn run(scenario: &str, model: &str, overrides: &[(&str, f64)], fidelity: &[(&str
     }
     let inst = sc.instantiate_at(&p, &fid).unwrap();
     let f = registry::model(model).unwrap();
-    let s = run_single(sc, &p, inst.as_ref(), f, &fid, &RunOptions::default()).unwrap();
+    let s = run_single(sc, &p, &inst, f, &fid, &RunOptions::default()).unwrap();
     assert_eq!(s.status, "ok", "{scenario}/{model} {fidelity:?}: {}", s.reason);
     assert_eq!(
         s.end, "settled",

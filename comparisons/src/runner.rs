@@ -259,7 +259,7 @@ impl HandWork {
 /// The watchdogs: the first one that trips, with what it saw. `hand_work`
 /// (J) is the work the hand did on the bodies so far: only energy beyond it
 /// counts as growth.
-fn watchdog(obs: &Observation, run: &dyn ScenarioRun, e0: f64, hand_work: f64, opts: &RunOptions) -> Option<String> {
+fn watchdog(obs: &Observation, run: &ScenarioRun, e0: f64, hand_work: f64, opts: &RunOptions) -> Option<String> {
     if !obs.is_finite() {
         return Some("non-finite state".into());
     }
@@ -304,7 +304,7 @@ struct Repeat {
 
 fn run_repeat(
     model: &mut dyn surgbench_core::Model,
-    run: &dyn ScenarioRun,
+    run: &ScenarioRun,
     primary: &str,
     opts: &RunOptions,
     record: bool,
@@ -405,7 +405,7 @@ fn run_repeat(
 pub fn run_single(
     scenario: &dyn Scenario,
     params: &Params,
-    run: &dyn ScenarioRun,
+    run: &ScenarioRun,
     factory: &dyn ModelFactory,
     fidelity: &Fidelity,
     opts: &RunOptions,

@@ -8,6 +8,7 @@
 
 use std::collections::BTreeMap;
 use std::fmt;
+use std::path::{Path, PathBuf};
 use surgbench_core::{Family, Fidelity, Observation, Scene};
 
 /// A usage error: bad parameter, unknown name. The CLI prints it on one line
@@ -108,9 +109,9 @@ pub const fn same_name(a: &str, b: &str) -> bool {
 
 /// A scenario's parameters as a typed struct: one `f64` field per
 /// [`ParamSpec`], named as the spec (checked at compile time), in listing
-/// order. `NAME::SPECS` is the list `surgbench list` shows and
-/// [`Params::resolve`] validates against; `NAME::of(&params)` reads the
-/// resolved values, so a misspelt parameter is a compile error.
+/// order, implementing [`ParamSet`]: `NAME::SPECS` is the list `surgbench
+/// list` shows and [`Params::resolve`] validates against; `NAME::of(&params)`
+/// reads the resolved values, so a misspelt parameter is a compile error.
 ///
 /// ```ignore
 /// params! {
@@ -133,11 +134,9 @@ macro_rules! params {
                 pub $field: f64,
             )*
         }
-        impl $name {
-            /// Name, default, unit and range of every parameter, in listing order.
-            pub const SPECS: &'static [$crate::scenario::ParamSpec] = &[$($spec),*];
-            /// The resolved values (defaults overlaid with the user's overrides).
-            pub fn of(p: &$crate::scenario::Params) -> Self {
+        impl $crate::scenario::ParamSet for $name {
+            const SPECS: &'static [$crate::scenario::ParamSpec] = &[$($spec),*];
+            fn of(p: &$crate::scenario::Params) -> Self {
                 Self { $($field: p.get(stringify!($field))),* }
             }
         }
@@ -255,29 +254,119 @@ impl<F: Fn(&Observation) -> Metrics> Scorer for F {
     }
 }
 
-/// One instantiated scenario: the scene and its reference.
-pub trait ScenarioRun: Send {
+/// What a scenario instance scores against: it makes a fresh [`Scorer`]
+/// for each run of its scene. References whose metrics depend on one
+/// observation alone implement [`Pointwise`] instead.
+pub trait Reference: Send + Sync {
+    /// A fresh scorer for one run of `scene`.
+    fn scorer<'a>(&'a self, scene: &'a Scene) -> Box<dyn Scorer + 'a>;
+}
+
+/// A reference whose metrics depend on the observation scored alone (no
+/// run-wide sums): every `Pointwise` is a [`Reference`].
+pub trait Pointwise: Send + Sync {
+    /// Error metrics of `obs` against the reference.
+    fn score(&self, obs: &Observation) -> Metrics;
+}
+
+impl<T: Pointwise> Reference for T {
+    fn scorer<'a>(&'a self, _scene: &'a Scene) -> Box<dyn Scorer + 'a> {
+        Box::new(|obs: &Observation| self.score(obs))
+    }
+}
+
+/// One instantiated scenario: the scene every model runs, the reference its
+/// runs are scored against (computed once, outside any timed loop), and the
+/// scales the runner's watchdogs use.
+pub struct ScenarioRun {
+    scene: Scene,
+    reference: Box<dyn Reference>,
+    energy_scale: f64,
+    length_scale: f64,
+    penetration_limit: f64,
+    reference_tip: Option<[f64; 3]>,
+}
+
+impl ScenarioRun {
+    /// `scene` scored against `reference`; the energy watchdog trips past
+    /// 10x `energy_scale` (J) of growth, the bounding one on a node 10x
+    /// `length_scale` (m) from the origin. No penetration limit, no
+    /// reference tip until set.
+    pub fn new(scene: Scene, reference: impl Reference + 'static, energy_scale: f64, length_scale: f64) -> Self {
+        Self {
+            scene,
+            reference: Box::new(reference),
+            energy_scale,
+            length_scale,
+            penetration_limit: f64::INFINITY,
+            reference_tip: None,
+        }
+    }
+    /// Trip the penetration watchdog past `limit` (m).
+    pub fn with_penetration_limit(mut self, limit: f64) -> Self {
+        self.penetration_limit = limit;
+        self
+    }
+    /// The reference tip position (m), reported beside the model's.
+    pub fn with_reference_tip(mut self, tip: [f64; 3]) -> Self {
+        self.reference_tip = Some(tip);
+        self
+    }
     /// The scene every model runs.
-    fn scene(&self) -> &Scene;
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
     /// A fresh scorer for one run of this scene.
-    fn scorer(&self) -> Box<dyn Scorer + '_>;
+    pub fn scorer(&self) -> Box<dyn Scorer + '_> {
+        self.reference.scorer(&self.scene)
+    }
     /// Energy scale (J): the energy growth watchdog trips past 10x this.
-    fn energy_scale(&self) -> f64;
+    pub fn energy_scale(&self) -> f64 {
+        self.energy_scale
+    }
     /// Length scale (m): a node farther than 10x this from the origin trips
     /// the bounding watchdog.
-    fn length_scale(&self) -> f64;
-    /// The reference tip position (m), if the scenario has one.
-    fn reference_tip(&self) -> Option<[f64; 3]> {
-        None
+    pub fn length_scale(&self) -> f64 {
+        self.length_scale
     }
     /// Penetration (m) past which the penetration watchdog trips.
-    fn penetration_limit(&self) -> f64 {
-        f64::INFINITY
+    pub fn penetration_limit(&self) -> f64 {
+        self.penetration_limit
+    }
+    /// The reference tip position (m), if the scenario has one.
+    pub fn reference_tip(&self) -> Option<[f64; 3]> {
+        self.reference_tip
+    }
+}
+
+/// A scenario's default fidelity sweep, as data.
+#[derive(Debug, Clone, Copy)]
+pub enum Sweep {
+    /// One knob (`segments`, `dt`, ...) over these values.
+    Knob(&'static str, &'static [f64]),
+    /// Tissue mesh levels `0..=MAX_LEVEL`, each with this time step (s) if
+    /// given.
+    MeshLevels(Option<f64>),
+}
+
+impl Sweep {
+    /// The fidelities of the sweep.
+    pub fn fidelities(self) -> Vec<Fidelity> {
+        match self {
+            Sweep::Knob(knob, values) => sweep_of(knob, values),
+            Sweep::MeshLevels(dt) => (0..=crate::scenarios::tissue::MAX_LEVEL)
+                .map(|l| Fidelity {
+                    mesh_level: Some(l),
+                    dt,
+                    ..Default::default()
+                })
+                .collect(),
+        }
     }
 }
 
 /// What a scenario is, declared once: shown by `surgbench list`, written
-/// into every result row.
+/// into every result row, swept by comparisons.
 #[derive(Debug, Clone, Copy)]
 pub struct ScenarioInfo {
     /// Stable id, e.g. `cantilever-gravity`.
@@ -290,29 +379,40 @@ pub struct ScenarioInfo {
     pub reference: &'static str,
     /// Name of the headline error metric (a key of the scorer's metrics).
     pub primary_error: &'static str,
+    /// Parameters with defaults (a `params!` struct's `SPECS`).
+    pub params: &'static [ParamSpec],
+    /// Default fidelity sweep.
+    pub sweep: Sweep,
+    /// How many of the sweep's first fidelities `--quick` runs.
+    pub quick: usize,
 }
 
-/// A scenario of the catalogue.
+/// Everything a scenario's builder reads besides its typed parameters.
+#[derive(Debug, Clone, Copy)]
+pub struct Inputs<'a> {
+    /// The resolved parameters (e.g. to tell defaults from overrides).
+    pub params: &'a Params,
+    /// The requested fidelity (tissue scenes build their mesh at its
+    /// `mesh_level`).
+    pub fidelity: &'a Fidelity,
+    /// The folder holding `phantom/` and `reference/` data.
+    pub datasets: &'a Path,
+}
+
+/// A scenario of the catalogue. [`Declared`] is the usual implementation:
+/// a [`ScenarioInfo`] and a builder function.
 pub trait Scenario: Send + Sync {
-    /// Id, description, family, reference and headline metric.
-    fn info(&self) -> &'static ScenarioInfo;
-    /// Parameters with defaults (a `params!` struct's `SPECS`).
-    fn params(&self) -> &'static [ParamSpec];
-    /// Default fidelity sweep.
-    fn sweep(&self) -> Vec<Fidelity>;
-    /// A smaller sweep for `--quick`.
-    fn quick_sweep(&self) -> Vec<Fidelity> {
-        let s = self.sweep();
-        s.into_iter().take(3).collect()
-    }
+    /// Id, description, family, reference, headline metric, parameters,
+    /// sweep.
+    fn info(&self) -> &ScenarioInfo;
     /// Validate parameters, build the scene and compute the reference for a
     /// requested fidelity: the harness always calls this one. Scenarios
     /// whose geometry depends on a fidelity knob (tissue meshes built at
     /// `mesh_level`) read it; the others ignore it.
-    fn instantiate_at(&self, params: &Params, fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError>;
+    fn instantiate_at(&self, params: &Params, fidelity: &Fidelity) -> Result<ScenarioRun, UsageError>;
 
     /// [`Scenario::instantiate_at`] at the default fidelity.
-    fn instantiate(&self, params: &Params) -> Result<Box<dyn ScenarioRun>, UsageError> {
+    fn instantiate(&self, params: &Params) -> Result<ScenarioRun, UsageError> {
         self.instantiate_at(params, &Fidelity::default())
     }
     /// Stable id ([`ScenarioInfo::id`]).
@@ -334,6 +434,56 @@ pub trait Scenario: Send + Sync {
     /// Headline error metric ([`ScenarioInfo::primary_error`]).
     fn primary_error(&self) -> &'static str {
         self.info().primary_error
+    }
+    /// Parameters with defaults ([`ScenarioInfo::params`]).
+    fn params(&self) -> &'static [ParamSpec] {
+        self.info().params
+    }
+    /// Default fidelity sweep ([`ScenarioInfo::sweep`]).
+    fn sweep(&self) -> Vec<Fidelity> {
+        self.info().sweep.fidelities()
+    }
+    /// The smaller sweep of `--quick` ([`ScenarioInfo::quick`]).
+    fn quick_sweep(&self) -> Vec<Fidelity> {
+        self.sweep().into_iter().take(self.info().quick).collect()
+    }
+}
+
+/// A typed parameter struct (declared with `params!`).
+pub trait ParamSet: Sized {
+    /// Name, default, unit and range of every parameter, in listing order.
+    const SPECS: &'static [ParamSpec];
+    /// The resolved values.
+    fn of(p: &Params) -> Self;
+}
+
+/// A scenario declared as data: what it is and how it builds an instance
+/// from its typed parameters `P`.
+pub struct Declared<P: ParamSet> {
+    /// Id, description, reference, parameters, sweep.
+    pub info: ScenarioInfo,
+    /// Data folder (`None`: [`crate::datasets::datasets_dir`]); a test may
+    /// point a scenario at other reference data.
+    pub datasets: Option<&'static str>,
+    /// Builds the scene and its reference.
+    pub build: fn(&P, &Inputs) -> Result<ScenarioRun, UsageError>,
+}
+
+impl<P: ParamSet> Scenario for Declared<P> {
+    fn info(&self) -> &ScenarioInfo {
+        &self.info
+    }
+    fn instantiate_at(&self, params: &Params, fidelity: &Fidelity) -> Result<ScenarioRun, UsageError> {
+        let datasets = self
+            .datasets
+            .map(PathBuf::from)
+            .unwrap_or_else(crate::datasets::datasets_dir);
+        let inputs = Inputs {
+            params,
+            fidelity,
+            datasets: &datasets,
+        };
+        (self.build)(&P::of(params), &inputs)
     }
 }
 

@@ -6,10 +6,10 @@
 #[path = "readme/scenario.rs"]
 mod example;
 
-use example::{RestParams, RodAtRest};
+use example::{ROD_AT_REST, RestParams};
 use surgbench_comparisons::registry;
 use surgbench_comparisons::runner::{RunOptions, run_single};
-use surgbench_comparisons::scenario::{Params, Scenario};
+use surgbench_comparisons::scenario::{ParamSet, Params, Scenario};
 use surgbench_core::Fidelity;
 
 /// The README section's `rust` code block.
@@ -36,22 +36,22 @@ fn the_readme_example_is_this_file() {
 
 #[test]
 fn the_example_resolves_and_refuses_a_misspelt_parameter() {
-    let p = Params::resolve("rod-at-rest", RodAtRest.params(), &[("length".into(), 0.2)]).unwrap();
+    let p = Params::resolve("rod-at-rest", ROD_AT_REST.params(), &[("length".into(), 0.2)]).unwrap();
     assert_eq!(RestParams::of(&p).length, 0.2);
     assert_eq!(RestParams::of(&p).radius, 5e-4, "unset parameters take their defaults");
-    let e = Params::resolve("rod-at-rest", RodAtRest.params(), &[("lenght".into(), 0.2)]).unwrap_err();
+    let e = Params::resolve("rod-at-rest", ROD_AT_REST.params(), &[("lenght".into(), 0.2)]).unwrap_err();
     assert!(e.0.contains("no parameter `lenght`"), "{e}");
 }
 
 #[test]
 fn the_example_runs_through_the_runner() {
-    let p = Params::resolve("rod-at-rest", RodAtRest.params(), &[]).unwrap();
-    let run = RodAtRest.instantiate_at(&p, &Fidelity::default()).unwrap();
+    let p = Params::resolve("rod-at-rest", ROD_AT_REST.params(), &[]).unwrap();
+    let run = ROD_AT_REST.instantiate_at(&p, &Fidelity::default()).unwrap();
     let der = registry::model("der").unwrap();
     let s = run_single(
-        &RodAtRest,
+        &ROD_AT_REST,
         &p,
-        run.as_ref(),
+        &run,
         der,
         &Fidelity::default(),
         &RunOptions::default(),

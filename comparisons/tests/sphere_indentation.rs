@@ -9,12 +9,12 @@ use surgbench_comparisons::references::{hertz_contact_radius, hertz_force, spher
 use surgbench_comparisons::registry;
 use surgbench_comparisons::runner::{RunOptions, run_single};
 use surgbench_comparisons::scenario::{Params, Scenario};
-use surgbench_comparisons::scenarios::tissue::{self, SPHERE_DT, SphereIndentation, sphere_block_mesh};
+use surgbench_comparisons::scenarios::tissue::{self, SPHERE_DT, SPHERE_INDENTATION, sphere_block_mesh};
 use surgbench_core::{Capability, Fidelity, ModelFactory, Observation, TissueObs, Vec3, mesh};
 
 fn params(overrides: &[(&str, f64)]) -> Params {
     let o: Vec<(String, f64)> = overrides.iter().map(|(k, v)| (k.to_string(), *v)).collect();
-    Params::resolve("sphere-indentation", SphereIndentation.params(), &o).unwrap()
+    Params::resolve("sphere-indentation", SPHERE_INDENTATION.params(), &o).unwrap()
 }
 
 fn level(l: usize) -> Fidelity {
@@ -96,11 +96,11 @@ fn graded_quarter_block_is_valid_and_resolves_the_contact() {
 /// planes; `validate` rejects a bad indenter and `transformed` moves it.
 #[test]
 fn scene_has_the_indenter_rollers_and_needs_tissue_contact() {
-    let run = SphereIndentation.instantiate_at(&params(&[]), &level(1)).unwrap();
+    let run = SPHERE_INDENTATION.instantiate_at(&params(&[]), &level(1)).unwrap();
     let scene = run.scene();
     assert!(scene.validate().is_ok());
     assert!(scene.required_capabilities().contains(&Capability::TissueContact));
-    let b = body(run.as_ref());
+    let b = body(&run);
     let ind = b.indenter.expect("indenter");
     assert_eq!(ind.centre, Vec3::new(0.0, 0.0, 1e-3));
     assert_eq!(ind.radius, 1e-3);
@@ -149,7 +149,7 @@ fn scene_has_the_indenter_rollers_and_needs_tissue_contact() {
 /// accepted, rod models are refused for having no tissue.
 #[test]
 fn models_without_tissue_contact_are_refused() {
-    let run = SphereIndentation.instantiate_at(&params(&[]), &level(0)).unwrap();
+    let run = SPHERE_INDENTATION.instantiate_at(&params(&[]), &level(0)).unwrap();
     for r in registry::models() {
         let f: &dyn ModelFactory = r.factory;
         let ok = f.check(run.scene());
@@ -176,8 +176,8 @@ fn models_without_tissue_contact_are_refused() {
 /// inside the sphere is reported as that penetration.
 #[test]
 fn score_reads_the_quarter_force_and_penetration() {
-    let run = SphereIndentation.instantiate_at(&params(&[]), &level(0)).unwrap();
-    let b = body(run.as_ref());
+    let run = SPHERE_INDENTATION.instantiate_at(&params(&[]), &level(0)).unwrap();
+    let b = body(&run);
     let f_ref = hertz_force(1e-3, 1e-5, 1e4, 0.3);
     let end = run.scene().duration;
     let obs = |fz: f64, dip: f64| {
@@ -230,7 +230,7 @@ fn score_reads_the_quarter_force_and_penetration() {
 /// size, as the penalty rule predicts (`p0 / (100 E*) = 6.4e-4`).
 #[test]
 fn fem_converges_to_hertz_at_order_three_halves() {
-    let sc = &SphereIndentation;
+    let sc = &SPHERE_INDENTATION;
     let p = params(&[]);
     let f = registry::model("fem").unwrap();
     let mut force = Vec::new();
@@ -238,7 +238,7 @@ fn fem_converges_to_hertz_at_order_three_halves() {
     for l in 0..=2 {
         let fid = level(l);
         let inst = sc.instantiate_at(&p, &fid).unwrap();
-        let s = run_single(sc, &p, inst.as_ref(), f, &fid, &RunOptions::default()).unwrap();
+        let s = run_single(sc, &p, &inst, f, &fid, &RunOptions::default()).unwrap();
         assert_eq!(s.status, "ok", "level {l}: {}", s.reason);
         eprintln!("fem level {l}: {:?}", s.errors);
         // P1 tets are too stiff: the force comes from above.

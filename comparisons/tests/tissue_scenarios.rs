@@ -17,7 +17,7 @@ use surgbench_comparisons::registry;
 use surgbench_comparisons::runner::{RunOptions, RunSummary, run_single};
 use surgbench_comparisons::scenario::{Params, Scenario, ScenarioRun};
 use surgbench_comparisons::scenarios::tissue::{
-    self, BlockCompression, CubeFrame, LameTube, TRUTH_CUBE_EDGE, TruthCube, VolumePreservation,
+    self, BLOCK_COMPRESSION, CubeFrame, LAME_TUBE, TRUTH_CUBE, TRUTH_CUBE_EDGE, VOLUME_PRESERVATION,
 };
 use surgbench_core::mesh::{self, truth_cube};
 use surgbench_core::rng::SplitMix64;
@@ -29,7 +29,7 @@ fn params(sc: &dyn Scenario, overrides: &[(&str, f64)]) -> Params {
 }
 
 /// An observation of the scene's tissue with nodes at `f(rest)`.
-fn observe(run: &dyn ScenarioRun, f: impl Fn(&Vec3) -> Vec3) -> Observation {
+fn observe(run: &ScenarioRun, f: impl Fn(&Vec3) -> Vec3) -> Observation {
     let rest = body(run).mesh.nodes.clone();
     let nodes: Vec<Vec3> = rest.iter().map(&f).collect();
     Observation {
@@ -109,9 +109,9 @@ fn every_tissue_scenario_instantiates_validates_and_needs_what_it_expects() {
         assert_eq!(scene.control.command_at(settle.min_time).insertion, 1.0, "{id}");
         // The default instance is the default mesh level.
         let at_default = sc.instantiate_at(&p, &level(tissue::DEFAULT_LEVEL)).unwrap();
-        assert_eq!(body(at_default.as_ref()).mesh, body(run.as_ref()).mesh, "{id}");
+        assert_eq!(body(&at_default).mesh, body(&run).mesh, "{id}");
         // The primary metric is scored on an undeformed observation.
-        let m = run.scorer().score(&observe(run.as_ref(), |x| *x));
+        let m = run.scorer().score(&observe(&run, |x| *x));
         assert!(
             m.contains_key(sc.primary_error()),
             "{id}: {:?}",
@@ -143,7 +143,7 @@ fn mesh_levels_refine_the_meshes() {
         let counts: Vec<(usize, usize)> = (0..=2)
             .map(|l| {
                 let r = sc.instantiate_at(&p, &level(l)).unwrap();
-                let m = &body(r.as_ref()).mesh;
+                let m = &body(&r).mesh;
                 (m.nodes.len(), m.tets.len())
             })
             .collect();
@@ -178,7 +178,7 @@ fn load_ramp_is_smooth_monotone_and_reaches_one() {
 #[test]
 fn block_reference_is_the_committed_scikit_fem_curve() {
     let r = BlockReference::load(&datasets_dir()).unwrap();
-    let p = params(&BlockCompression, &[]);
+    let p = params(&BLOCK_COMPRESSION, &[]);
     assert_eq!(
         (r.edge, r.youngs_modulus, r.poisson_ratio),
         (p.get("edge"), p.get("youngs_modulus"), 0.3)
@@ -201,10 +201,10 @@ fn block_reference_is_the_committed_scikit_fem_curve() {
 
 #[test]
 fn block_scene_clamps_the_base_and_drives_the_plate() {
-    let sc = BlockCompression;
+    let sc = BLOCK_COMPRESSION;
     let p = params(&sc, &[("strain", 0.1)]);
     let run = sc.instantiate_at(&p, &level(0)).unwrap();
-    let b = body(run.as_ref());
+    let b = body(&run);
     let n = tissue::block_cells(0) + 1;
     assert_eq!(b.fixed_nodes.len(), n * n);
     assert_eq!(b.driven_nodes.len(), n * n);
@@ -224,13 +224,13 @@ fn block_scene_clamps_the_base_and_drives_the_plate() {
 
 #[test]
 fn block_scores_the_plate_force_against_the_reference() {
-    let sc = BlockCompression;
+    let sc = BLOCK_COMPRESSION;
     let run = sc.instantiate_at(&params(&sc, &[]), &level(0)).unwrap();
     let f_ref = BlockReference::load(&datasets_dir())
         .unwrap()
         .force(0.02, 0.01, 5e3)
         .unwrap();
-    let mut obs = observe(run.as_ref(), |x| *x);
+    let mut obs = observe(&run, |x| *x);
     obs.hand_force = Vec3::new(0.0, 0.0, f_ref);
     let m = run.scorer().score(&obs);
     assert_eq!(m["force_error_rel"], 0.0, "{m:?}");
@@ -330,7 +330,7 @@ fn lame_closed_form_matches_the_committed_scikit_fem_reference() {
         "the stated error {stated:e} is not what the CSV shows ({worst:e})"
     );
     // The scenario's defaults are the reference's geometry and material.
-    let d = params(&LameTube, &[]);
+    let d = params(&LAME_TUBE, &[]);
     assert_eq!(
         (d.get("inner_radius"), d.get("outer_radius"), d.get("height")),
         (a, b, meta(rel, "parameters", "height"))
@@ -340,10 +340,10 @@ fn lame_closed_form_matches_the_committed_scikit_fem_reference() {
 
 #[test]
 fn lame_scene_has_symmetry_rollers_plane_strain_ends_and_inward_facing_pressure_faces() {
-    let sc = LameTube;
+    let sc = LAME_TUBE;
     let p = params(&sc, &[]);
     let run = sc.instantiate_at(&p, &level(1)).unwrap();
-    let b = body(run.as_ref());
+    let b = body(&run);
     let (a, h) = (p.get("inner_radius"), p.get("height"));
     assert!(b.fixed_nodes.is_empty() && b.driven_nodes.is_empty());
     let held: BTreeMap<usize, [bool; 3]> = b.partial_fixed.iter().copied().collect();
@@ -388,7 +388,7 @@ fn lame_scene_has_symmetry_rollers_plane_strain_ends_and_inward_facing_pressure_
 
 #[test]
 fn lame_scores_the_exact_field_as_zero_and_perturbations_as_expected() {
-    let sc = LameTube;
+    let sc = LAME_TUBE;
     let p = params(&sc, &[]);
     let run = sc.instantiate_at(&p, &level(1)).unwrap();
     let (a, b, pr, e, nu) = (
@@ -403,7 +403,7 @@ fn lame_scores_the_exact_field_as_zero_and_perturbations_as_expected() {
         let r = x.xy().norm();
         x + Vec3::new(x.x / r, x.y / r, 0.0) * (s * u(r))
     };
-    let m = run.scorer().score(&observe(run.as_ref(), |x| radial(x, 1.0)));
+    let m = run.scorer().score(&observe(&run, |x| radial(x, 1.0)));
     // Round-off of x + u with |x| = 2e-2, u = 2e-5: 1e-13 of u(a).
     for k in [
         "rms_radial_error_rel",
@@ -414,9 +414,9 @@ fn lame_scores_the_exact_field_as_zero_and_perturbations_as_expected() {
         assert!(m[k] < 1e-9, "{k} = {:e} for the exact field", m[k]);
     }
     // Scaled by 1.05: radial error 0.05 u(R) at every node.
-    let nodes = &body(run.as_ref()).mesh.nodes;
+    let nodes = &body(&run).mesh.nodes;
     let rms_u = (nodes.iter().map(|x| u(x.xy().norm()).powi(2)).sum::<f64>() / nodes.len() as f64).sqrt();
-    let m = run.scorer().score(&observe(run.as_ref(), |x| radial(x, 1.05)));
+    let m = run.scorer().score(&observe(&run, |x| radial(x, 1.05)));
     let want = 0.05 * rms_u / u(a);
     assert!(
         (m["rms_radial_error_rel"] / want - 1.0).abs() < 1e-6,
@@ -427,9 +427,9 @@ fn lame_scores_the_exact_field_as_zero_and_perturbations_as_expected() {
     assert!((m["max_radial_error_rel"] - 0.05).abs() < 1e-6, "{m:?}");
     assert!((m["inner_wall_error_rel"] - 0.05).abs() < 1e-6, "{m:?}");
     // An axial shift of 0.1 u(a): no radial error, vector error 0.1.
-    let m = run.scorer().score(&observe(run.as_ref(), |x| {
-        radial(x, 1.0) + Vec3::new(0.0, 0.0, 0.1 * u(a))
-    }));
+    let m = run
+        .scorer()
+        .score(&observe(&run, |x| radial(x, 1.0) + Vec3::new(0.0, 0.0, 0.1 * u(a))));
     assert!(m["rms_radial_error_rel"] < 1e-9, "{m:?}");
     assert!((m["rms_displacement_error_rel"] - 0.1).abs() < 1e-6, "{m:?}");
 }
@@ -440,10 +440,10 @@ fn lame_scores_the_exact_field_as_zero_and_perturbations_as_expected() {
 
 #[test]
 fn volume_scene_squashes_and_twists_the_top_face_rigidly() {
-    let sc = VolumePreservation;
+    let sc = VOLUME_PRESERVATION;
     let p = params(&sc, &[]);
     let run = sc.instantiate_at(&p, &level(0)).unwrap();
-    let b = body(run.as_ref());
+    let b = body(&run);
     assert_eq!(b.material.poisson_ratio, 0.49);
     let (l, c, th) = (p.get("edge"), p.get("compression"), p.get("twist"));
     let centre = Vec3::new(l / 2.0, l / 2.0, l);
@@ -465,25 +465,23 @@ fn volume_scene_squashes_and_twists_the_top_face_rigidly() {
 
 #[test]
 fn volume_scores_are_exact_for_linear_maps() {
-    let sc = VolumePreservation;
+    let sc = VOLUME_PRESERVATION;
     let run = sc.instantiate_at(&params(&sc, &[]), &level(0)).unwrap();
     // Isochoric shear + stretch (det = 1): tets stay tets, volume exact.
     let f = Mat3::new(1.2, 0.3, 0.0, 0.0, 1.0 / 1.2, 0.1, 0.0, 0.0, 1.0);
-    let m = run.scorer().score(&observe(run.as_ref(), |x| f * x));
+    let m = run.scorer().score(&observe(&run, |x| f * x));
     assert!(m["volume_change_rel"] < 1e-14, "{m:?}");
     assert_eq!(m["inverted_elements"], 0.0);
     // Uniform dilation by 1 %: 1.01^3 - 1.
-    let mut obs = observe(run.as_ref(), |x| x * 1.01);
+    let mut obs = observe(&run, |x| x * 1.01);
     obs.tissues[0].volume_error = 0.030301;
     let m = run.scorer().score(&obs);
     assert!((m["volume_change_rel"] - 0.030301).abs() < 1e-14, "{m:?}");
     assert!((m["max_element_volume_change_rel"] - 0.030301).abs() < 1e-14, "{m:?}");
     assert!(m["reported_volume_mismatch_rel"] < 1e-14, "{m:?}");
     // A mirror inverts every element.
-    let m = run
-        .scorer()
-        .score(&observe(run.as_ref(), |x| Vec3::new(x.x, x.y, -x.z)));
-    let n = body(run.as_ref()).mesh.tets.len() as f64;
+    let m = run.scorer().score(&observe(&run, |x| Vec3::new(x.x, x.y, -x.z)));
+    let n = body(&run).mesh.tets.len() as f64;
     assert_eq!(m["inverted_elements"], n);
     assert!((m["volume_ratio"] + 1.0).abs() < 1e-14, "{m:?}");
 }
@@ -562,11 +560,11 @@ fn truth_cube_scores_a_resting_cube_as_the_measured_motion_and_affine_fields_exa
     let c = cube();
     let f = CubeFrame::fit(&c, TRUTH_CUBE_EDGE).unwrap();
     for level in 1..=3usize {
-        let sc = TruthCube;
+        let sc = TRUTH_CUBE;
         let run = sc
             .instantiate_at(&params(&sc, &[("strain_level", level as f64)]), &self::level(0))
             .unwrap();
-        let b = body(run.as_ref());
+        let b = body(&run);
         let strain = truth_cube::NOMINAL_STRAINS[level];
         let drive = b.driven_nodes[0].1;
         assert_eq!(drive, Vec3::new(0.0, 0.0, -strain * 0.08));
@@ -576,7 +574,7 @@ fn truth_cube_scores_a_resting_cube_as_the_measured_motion_and_affine_fields_exa
         );
         // Nothing moves: the error is the measured motion, computed in the
         // CT frame (the fitted rotation keeps lengths).
-        let m = run.scorer().score(&observe(run.as_ref(), |x| *x));
+        let m = run.scorer().score(&observe(&run, |x| *x));
         let n = c.beads.len() as f64;
         let moved: Vec<f64> = c
             .beads
@@ -594,7 +592,7 @@ fn truth_cube_scores_a_resting_cube_as_the_measured_motion_and_affine_fields_exa
         // Uniform compression about the base: P1 reproduces it, so the
         // prediction at each bead is the affine map of the bead.
         let a = Mat3::from_diagonal(&Vec3::new(1.0 + 0.5 * strain, 1.0 + 0.5 * strain, 1.0 - strain));
-        let m = run.scorer().score(&observe(run.as_ref(), |x| a * x));
+        let m = run.scorer().score(&observe(&run, |x| a * x));
         let err: Vec<Vec3> = f.beads[0]
             .iter()
             .zip(&f.beads[level])
@@ -611,12 +609,12 @@ fn truth_cube_scores_a_resting_cube_as_the_measured_motion_and_affine_fields_exa
         );
         assert!((m["rms_bead_error_aligned_m"] - aligned).abs() < 1e-12);
     }
-    let e = TruthCube
-        .instantiate(&params(&TruthCube, &[("strain_level", 1.5)]))
+    let e = TRUTH_CUBE
+        .instantiate(&params(&TRUTH_CUBE, &[("strain_level", 1.5)]))
         .err()
         .expect("not a level");
     assert!(e.0.contains("strain_level"), "{e}");
-    assert!(Params::resolve("truth-cube", TruthCube.params(), &[("strain_level".into(), 4.0)]).is_err());
+    assert!(Params::resolve("truth-cube", TRUTH_CUBE.params(), &[("strain_level".into(), 4.0)]).is_err());
 }
 
 // ---------------------------------------------------------------------------
@@ -666,7 +664,7 @@ fn run(scenario: &str, model: &str, overrides: &[(&str, f64)], fidelity: &[(&str
     }
     let inst = sc.instantiate_at(&p, &fid).unwrap();
     let f = registry::model(model).unwrap();
-    let s = run_single(sc, &p, inst.as_ref(), f, &fid, &RunOptions::default()).unwrap();
+    let s = run_single(sc, &p, &inst, f, &fid, &RunOptions::default()).unwrap();
     assert_eq!(s.status, "ok", "{scenario}/{model} {fidelity:?}: {}", s.reason);
     eprintln!(
         "{scenario}/{model} {overrides:?} {fidelity:?}: end {} after {} steps, {:?}",

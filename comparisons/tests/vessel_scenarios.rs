@@ -6,8 +6,9 @@
 use std::f64::consts::PI;
 use std::sync::Arc;
 use surgbench_comparisons::runner::{RunOptions, RunSummary, run_single};
+use surgbench_comparisons::scenario::Declared;
 use surgbench_comparisons::scenario::{Params, Scenario};
-use surgbench_comparisons::scenarios::vessel::{self, ArchInsertion, ENTRY_S, WIRE_RADIUS};
+use surgbench_comparisons::scenarios::vessel::{self, ARCH_INSERTION, ArchParams, ENTRY_S, WIRE_RADIUS};
 use surgbench_core::{
     BuildError, Capability, DeviceCommand, Family, Fidelity, Mat3, Model, ModelFactory, Observation, RodObs, Scene,
     SimError, StepStats, Vec3,
@@ -111,7 +112,7 @@ fn params(s: &dyn Scenario, overrides: &[(&str, f64)]) -> Params {
 
 fn run(s: &dyn Scenario, p: &Params, f: &TestFactory) -> RunSummary {
     let r = s.instantiate(p).unwrap();
-    run_single(s, p, r.as_ref(), f, &Fidelity::default(), &RunOptions::default()).unwrap()
+    run_single(s, p, &r, f, &Fidelity::default(), &RunOptions::default()).unwrap()
 }
 
 #[test]
@@ -351,7 +352,10 @@ fn arch_insertion_uses_a_cached_reference_when_present() {
     }
     std::fs::write(refdir.join("tip_trajectory.csv"), csv).unwrap();
     let leaked: &'static str = Box::leak(dir.display().to_string().into_boxed_str());
-    let s: &'static ArchInsertion = Box::leak(Box::new(ArchInsertion { datasets: Some(leaked) }));
+    let s: &'static Declared<ArchParams> = Box::leak(Box::new(Declared {
+        datasets: Some(leaked),
+        ..ARCH_INSERTION
+    }));
     let p = params(s, &[]);
     let sum = run(s, &p, &arch_follower(L0, Vec3::zeros()));
     let e = &sum.errors;
@@ -380,12 +384,12 @@ fn arch_insertion_uses_a_cached_reference_when_present() {
     // Overrides disable the reference (it was computed for the defaults).
     let p2 = params(s, &[("insertion_speed", 0.018)]);
     let r2 = s.instantiate(&p2).unwrap();
-    let sum2 = run_single(s, &p2, r2.as_ref(), &slow, &Fidelity::default(), &RunOptions::default()).unwrap();
+    let sum2 = run_single(s, &p2, &r2, &slow, &Fidelity::default(), &RunOptions::default()).unwrap();
     assert_eq!(sum2.errors["reference_available"], 0.0);
     // Scored against the reference, the slow wire's final tip error is the
     // 15 mm it lags along the trunk (chord <= arc; equal, up to rounding, on
     // the straight ascending aorta where both tips end).
-    let sum3 = run_single(s, &p, r.as_ref(), &slow, &Fidelity::default(), &RunOptions::default()).unwrap();
+    let sum3 = run_single(s, &p, &r, &slow, &Fidelity::default(), &RunOptions::default()).unwrap();
     let lag = 0.1 * 0.02 * 7.5;
     let err = sum3.errors["tip_error_m"];
     assert!(
@@ -660,7 +664,7 @@ fn branch_selection_success_and_miss() {
 
 #[test]
 fn flow_drift_needs_flow_and_scores_drift() {
-    let s = &vessel::FlowDrift::DEFAULT;
+    let s = &vessel::FLOW_DRIFT;
     let p = params(s, &[]);
     let no_flow = TestFactory {
         caps: &[Capability::Rod, Capability::VesselContact, Capability::Friction],

@@ -11,12 +11,12 @@ use surgbench_comparisons::references::WallReference;
 use surgbench_comparisons::registry;
 use surgbench_comparisons::runner::{RunOptions, run_single};
 use surgbench_comparisons::scenario::{Params, Scenario};
-use surgbench_comparisons::scenarios::tissue::{self, WallIndentation};
+use surgbench_comparisons::scenarios::tissue::{self, WALL_INDENTATION};
 use surgbench_core::Vec3;
 
 fn params(overrides: &[(&str, f64)]) -> Params {
     let o: Vec<(String, f64)> = overrides.iter().map(|(k, v)| (k.to_string(), *v)).collect();
-    Params::resolve("wall-indentation", WallIndentation.params(), &o).unwrap()
+    Params::resolve("wall-indentation", WALL_INDENTATION.params(), &o).unwrap()
 }
 
 fn reference() -> WallReference {
@@ -151,12 +151,12 @@ fn wall_sphere_reference_is_a_converged_contact_solution() {
 #[test]
 fn wall_sphere_scene_is_the_reference_quarter_at_every_level() {
     let r = reference();
-    let sc = WallIndentation;
+    let sc = WALL_INDENTATION;
     let p = params(&[]);
     let (a, half, zc) = (r.inner_radius, r.sector_angle / 2.0, r.length / 2.0);
     for l in 0..=2usize {
         let run = sc.instantiate_at(&p, &level(l)).unwrap();
-        let b = body(run.as_ref());
+        let b = body(&run);
         b.mesh.validate().unwrap();
         let (n_r, n_s) = tissue::wall_sphere_cells(l);
         assert_eq!(b.mesh.tets.len(), 6 * n_r * n_s * n_s, "level {l}");
@@ -204,7 +204,7 @@ fn wall_sphere_scene_is_the_reference_quarter_at_every_level() {
 #[test]
 fn wall_sphere_scores_force_surface_and_penetration() {
     let r = reference();
-    let sc = WallIndentation;
+    let sc = WALL_INDENTATION;
     let depth = 1e-4;
     let e = 2e6;
     let run = sc
@@ -214,7 +214,7 @@ fn wall_sphere_scores_force_surface_and_penetration() {
     // The quarter pushes the sphere back along -x with a quarter of the force.
     let m = run
         .scorer()
-        .score(&observe(run.as_ref(), 1.0, Vec3::new(-0.25 * f_ref, 0.0, 0.0), |_| {
+        .score(&observe(&run, 1.0, Vec3::new(-0.25 * f_ref, 0.0, 0.0), |_| {
             Vec3::zeros()
         }));
     assert!(m["force_error_rel"] < 1e-12, "{m:?}");
@@ -224,16 +224,16 @@ fn wall_sphere_scores_force_surface_and_penetration() {
     assert!((m["penetration_over_depth"] - 1.0).abs() < 1e-9, "{m:?}");
     let m = run
         .scorer()
-        .score(&observe(run.as_ref(), 1.0, Vec3::new(-0.3 * f_ref, 0.0, 0.0), |_| {
+        .score(&observe(&run, 1.0, Vec3::new(-0.3 * f_ref, 0.0, 0.0), |_| {
             Vec3::zeros()
         }));
     assert!((m["force_ratio"] - 1.2).abs() < 1e-12, "{m:?}");
     // Every node moved rigidly by the full travel: the inner wall clears
     // the sphere (no penetration), and u_r = depth cos(theta) is the error
     // against the reference at each probe.
-    let m = run.scorer().score(&observe(run.as_ref(), 1.0, Vec3::zeros(), |_| {
-        Vec3::new(depth, 0.0, 0.0)
-    }));
+    let m = run
+        .scorer()
+        .score(&observe(&run, 1.0, Vec3::zeros(), |_| Vec3::new(depth, 0.0, 0.0)));
     assert!(m["penetration_over_depth"] < 1e-9, "{m:?}");
     let probes = r.profile(depth).unwrap();
     let (mut num, mut den) = (0.0, 0.0);
@@ -265,7 +265,7 @@ fn fem_wall_sphere_converges_towards_the_reference() {
         let mut fid = level(l);
         fid.set("dt", 0.025).unwrap();
         let inst = sc.instantiate_at(&p, &fid).unwrap();
-        let s = run_single(sc, &p, inst.as_ref(), f, &fid, &RunOptions::default()).unwrap();
+        let s = run_single(sc, &p, &inst, f, &fid, &RunOptions::default()).unwrap();
         assert_eq!(s.status, "ok", "level {l}: {}", s.reason);
         eprintln!("fem level {l}: {:?}", s.errors);
         force.push(s.errors["force_error_rel"]);

@@ -12,12 +12,12 @@ use surgbench_comparisons::references::PunchReference;
 use surgbench_comparisons::registry;
 use surgbench_comparisons::runner::{RunOptions, run_single};
 use surgbench_comparisons::scenario::{Params, Scenario};
-use surgbench_comparisons::scenarios::tissue::{self, WallPunch};
+use surgbench_comparisons::scenarios::tissue::{self, WALL_PUNCH};
 use surgbench_core::Vec3;
 
 fn params(overrides: &[(&str, f64)]) -> Params {
     let o: Vec<(String, f64)> = overrides.iter().map(|(k, v)| (k.to_string(), *v)).collect();
-    Params::resolve("wall-punch", WallPunch.params(), &o).unwrap()
+    Params::resolve("wall-punch", WALL_PUNCH.params(), &o).unwrap()
 }
 
 fn reference() -> PunchReference {
@@ -148,7 +148,7 @@ fn wall_reference_is_linear_clamped_at_the_ends_and_driven_under_the_punch() {
 #[test]
 fn wall_scene_has_a_footprint_and_clamps_at_every_level() {
     let r = reference();
-    let sc = WallPunch;
+    let sc = WALL_PUNCH;
     let depth = 1e-4;
     let p = params(&[("depth", depth)]);
     let zc = r.length / 2.0;
@@ -156,7 +156,7 @@ fn wall_scene_has_a_footprint_and_clamps_at_every_level() {
     let mut tets = Vec::new();
     for l in 0..=tissue::MAX_LEVEL {
         let run = sc.instantiate_at(&p, &level(l)).unwrap();
-        let b = body(run.as_ref());
+        let b = body(&run);
         b.mesh.validate().unwrap();
         tets.push(b.mesh.tets.len());
         let (n_t, n_r, n_z) = tissue::wall_cells(&r, l);
@@ -219,7 +219,7 @@ fn wall_scene_has_a_footprint_and_clamps_at_every_level() {
 #[test]
 fn wall_scores_force_surface_and_curve_against_the_reference() {
     let r = reference();
-    let sc = WallPunch;
+    let sc = WALL_PUNCH;
     let depth = 5e-5;
     let e = 2e6;
     let run = sc
@@ -229,20 +229,17 @@ fn wall_scores_force_surface_and_curve_against_the_reference() {
     // The body pushes the punch back along -x.
     let m = run
         .scorer()
-        .score(&observe(run.as_ref(), 1.0, Vec3::new(-f_ref, 0.0, 0.0), |_| {
-            Vec3::zeros()
-        }));
+        .score(&observe(&run, 1.0, Vec3::new(-f_ref, 0.0, 0.0), |_| Vec3::zeros()));
     // The CSV's 10 digits and one interpolation: 1e-9.
     assert!(m["force_error_rel"] < 1e-9, "{m:?}");
     assert!((m["stiffness_n_per_m"] / (f_ref / depth) - 1.0).abs() < 1e-9, "{m:?}");
     // Nothing moved: the whole reference displacement is the error.
     assert_eq!(m["surface_error_rel"], 1.0, "{m:?}");
-    let m = run.scorer().score(&observe(
-        run.as_ref(),
-        1.0,
-        Vec3::new(-1.2 * f_ref, 0.1 * f_ref, 0.0),
-        |_| Vec3::zeros(),
-    ));
+    let m = run
+        .scorer()
+        .score(&observe(&run, 1.0, Vec3::new(-1.2 * f_ref, 0.1 * f_ref, 0.0), |_| {
+            Vec3::zeros()
+        }));
     assert!(
         (m["force_error_rel"] - 0.2).abs() < 1e-9 && (m["force_ratio"] - 1.2).abs() < 1e-9,
         "{m:?}"
@@ -262,7 +259,7 @@ fn wall_scores_force_surface_and_curve_against_the_reference() {
     assert_eq!(probes.len(), 28, "{probes:?}");
     let num: f64 = probes.iter().map(|(z, u)| (c0 + c1 * z - u).powi(2)).sum();
     let den: f64 = probes.iter().map(|(_, u)| u * u).sum();
-    let m = run.scorer().score(&observe(run.as_ref(), 1.0, Vec3::zeros(), |x| {
+    let m = run.scorer().score(&observe(&run, 1.0, Vec3::zeros(), |x| {
         Vec3::new(depth * (c0 + c1 * x.z), 0.0, 0.0)
     }));
     // Barycentric weights and positions of 5 mm with 5e-5 m displacements:
@@ -281,9 +278,9 @@ fn wall_scores_force_surface_and_curve_against_the_reference() {
         for k in 0..=20 {
             let t = 0.02 * k as f64;
             let f = factor * f_ref * run.scene().control.command_at(t).insertion;
-            scorer.observe_step(&observe(run.as_ref(), t, Vec3::new(-f, 0.0, 0.0), |_| Vec3::zeros()));
+            scorer.observe_step(&observe(&run, t, Vec3::new(-f, 0.0, 0.0), |_| Vec3::zeros()));
         }
-        let m = scorer.score(&observe(run.as_ref(), 0.4, Vec3::zeros(), |_| Vec3::zeros()));
+        let m = scorer.score(&observe(&run, 0.4, Vec3::zeros(), |_| Vec3::zeros()));
         let want = (factor - 1.0f64).abs();
         // One rounding per product and sum: 1e-14.
         assert!(
@@ -305,7 +302,7 @@ fn fem_wall_punch_converges_towards_the_reference() {
         let mut fid = level(l);
         fid.set("dt", 0.025).unwrap();
         let inst = sc.instantiate_at(&p, &fid).unwrap();
-        let s = run_single(sc, &p, inst.as_ref(), f, &fid, &RunOptions::default()).unwrap();
+        let s = run_single(sc, &p, &inst, f, &fid, &RunOptions::default()).unwrap();
         assert_eq!(s.status, "ok", "level {l}: {}", s.reason);
         eprintln!("fem level {l}: {:?}", s.errors);
         force.push(s.errors["force_error_rel"]);

@@ -1,8 +1,6 @@
 //! Cached reference trajectories: a converged model's tip path over time.
 
-use crate::datasets::datasets_dir;
-use crate::scenario::{Params, UsageError};
-use std::path::PathBuf;
+use crate::scenario::{Inputs, UsageError};
 use surgbench_core::Vec3;
 
 /// A cached reference trajectory `t,x,y,z` (s, m).
@@ -74,18 +72,16 @@ impl TipTrajectory {
 }
 
 /// Load `<datasets>/reference/<scenario>/tip_trajectory.csv` when present
-/// and the parameters are the defaults it was computed for; `datasets`
-/// defaults to [`datasets_dir`].
-pub fn cached_reference(
-    scenario: &str,
-    p: &Params,
-    datasets: Option<&str>,
-) -> Result<Option<TipTrajectory>, UsageError> {
-    if !p.overrides_string().is_empty() {
+/// and the parameters are the defaults it was computed for.
+pub fn cached_reference(scenario: &str, inputs: &Inputs) -> Result<Option<TipTrajectory>, UsageError> {
+    if !inputs.params.overrides_string().is_empty() {
         return Ok(None);
     }
-    let dir = datasets.map(PathBuf::from).unwrap_or_else(datasets_dir);
-    let path = dir.join("reference").join(scenario).join("tip_trajectory.csv");
+    let path = inputs
+        .datasets
+        .join("reference")
+        .join(scenario)
+        .join("tip_trajectory.csv");
     match std::fs::read_to_string(&path) {
         Ok(text) => TipTrajectory::parse(&path.display().to_string(), &text).map(Some),
         Err(_) => Ok(None),

@@ -13,13 +13,13 @@ pub fn level(l: usize) -> Fidelity {
 }
 
 /// The scene's one tissue body.
-pub fn body(run: &dyn ScenarioRun) -> &TissueBody {
+pub fn body(run: &ScenarioRun) -> &TissueBody {
     run.scene().tissues().next().expect("one tissue body")
 }
 
 /// An observation at time `t` with nodes at `rest + u(rest)`, at rest, and
 /// the given hand force.
-pub fn observe(run: &dyn ScenarioRun, t: f64, hand_force: Vec3, u: impl Fn(&Vec3) -> Vec3) -> Observation {
+pub fn observe(run: &ScenarioRun, t: f64, hand_force: Vec3, u: impl Fn(&Vec3) -> Vec3) -> Observation {
     let rest = body(run).mesh.nodes.clone();
     let nodes = rest.iter().map(|x| x + u(x)).collect();
     Observation {

@@ -1,19 +1,23 @@
-use std::collections::BTreeMap;
 use surgbench_comparisons::params;
 use surgbench_comparisons::scenario::{
-    Metrics, ParamSpec, Params, Range, Scenario, ScenarioInfo, ScenarioRun, Scorer, UsageError, sweep_of,
+    Declared, Inputs, Metrics, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
 };
-use surgbench_core::{Family, Fidelity, Observation, RodBody, Scene, Settle, Vec3};
+use surgbench_core::{Family, Observation, RodBody, Scene, Settle, Vec3};
 
 /// `rod-at-rest`: an unloaded straight rod must stay where it is.
-pub struct RodAtRest;
-
-const INFO: ScenarioInfo = ScenarioInfo {
-    id: "rod-at-rest",
-    description: "unloaded straight rod clamped at the origin: nothing moves",
-    family: Family::Rod,
-    reference: "closed form: the tip stays at (L, 0, 0)",
-    primary_error: "tip_error_m",
+pub const ROD_AT_REST: Declared<RestParams> = Declared {
+    info: ScenarioInfo {
+        id: "rod-at-rest",
+        description: "unloaded straight rod clamped at the origin: nothing moves",
+        family: Family::Rod,
+        reference: "closed form: the tip stays at (L, 0, 0)",
+        primary_error: "tip_error_m",
+        params: RestParams::SPECS,
+        sweep: Sweep::Knob("segments", &[10.0, 20.0, 40.0]),
+        quick: 2, // --quick runs the first two of the sweep
+    },
+    datasets: None, // reference data from datasets/ (this one needs none)
+    build,
 };
 
 params! {
@@ -26,15 +30,17 @@ params! {
     }
 }
 
-/// One instance: the scene and what the scorer compares against.
-struct RestRun {
-    scene: Scene,
+/// What a run is scored against: here the rest length.
+struct AtRest {
     length: f64,
 }
 
-impl RestRun {
+// Metrics of one observation alone: `Pointwise`. A scene with run-wide
+// metrics (peak force, time to reach) implements `Reference` instead and
+// hands out a `Scorer` that sums in `observe_step(&mut self, obs)`.
+impl Pointwise for AtRest {
     fn score(&self, obs: &Observation) -> Metrics {
-        let mut m = BTreeMap::new();
+        let mut m = Metrics::new();
         if let Some(rod) = obs.rods.first() {
             let want = Vec3::new(self.length, 0.0, 0.0);
             m.insert("tip_error_m".into(), (rod.tip() - want).norm());
@@ -43,48 +49,17 @@ impl RestRun {
     }
 }
 
-impl ScenarioRun for RestRun {
-    fn scene(&self) -> &Scene {
-        &self.scene
-    }
-    // Metrics of one observation alone: a closure is a Scorer. A scene with
-    // run-wide metrics (peak force, time to reach) returns its own struct
-    // that sums in `observe_step(&mut self, obs)`.
-    fn scorer(&self) -> Box<dyn Scorer + '_> {
-        Box::new(|obs: &Observation| self.score(obs))
-    }
-    fn energy_scale(&self) -> f64 {
-        1e-6 // J: the watchdog trips on growth past 10x this
-    }
-    fn length_scale(&self) -> f64 {
-        self.length // m: a node 10x this far from the origin trips the watchdog
-    }
-}
-
-impl Scenario for RodAtRest {
-    fn info(&self) -> &'static ScenarioInfo {
-        &INFO
-    }
-    fn params(&self) -> &'static [ParamSpec] {
-        RestParams::SPECS
-    }
-    fn sweep(&self) -> Vec<Fidelity> {
-        sweep_of("segments", &[10.0, 20.0, 40.0])
-    }
-    fn instantiate_at(&self, params: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        let p = RestParams::of(params); // p.length, p.radius, ...: a typo does not compile
-        let mut scene = Scene::empty(INFO.id);
-        scene.duration = p.duration;
-        scene.settle = Some(Settle {
-            velocity_tol: 1e-9,
-            min_time: 0.0,
-        });
-        scene
-            .bodies
-            .push(RodBody::uniform(p.length, p.radius, p.youngs_modulus, 0.3, 6450.0).into());
-        Ok(Box::new(RestRun {
-            scene,
-            length: p.length,
-        }))
-    }
+/// Validates the parameters, builds the scene and its reference.
+fn build(p: &RestParams, _: &Inputs) -> Result<ScenarioRun, UsageError> {
+    let mut scene = Scene::empty(ROD_AT_REST.info.id);
+    scene.duration = p.duration;
+    scene.settle = Some(Settle {
+        velocity_tol: 1e-9,
+        min_time: 0.0,
+    });
+    let rod = RodBody::uniform(p.length, p.radius, p.youngs_modulus, 0.3, 6450.0);
+    scene.bodies.push(rod.into());
+    // Watchdogs: energy growth past 10x 1e-6 J, a node 10x the length away.
+    let run = ScenarioRun::new(scene, AtRest { length: p.length }, 1e-6, p.length);
+    Ok(run.with_reference_tip([p.length, 0.0, 0.0]))
 }

@@ -3,21 +3,26 @@
 //! Drucker 1945).
 
 use super::cantilever_gravity::CantileverRun;
-use super::{DENSITY, DURATION, LENGTH, POISSON, RADIUS, RodCase, SETTLE, YOUNG, rod_case};
+use super::{DENSITY, DURATION, LENGTH, POISSON, RADIUS, RodCase, SEGMENTS, SETTLE, YOUNG, rod_case};
 use crate::params;
 use crate::references::elastica;
-use crate::scenario::{ParamSpec, Params, Range, Scenario, ScenarioInfo, ScenarioRun, UsageError, sweep_of};
-use surgbench_core::{Family, Fidelity, Vec3};
+use crate::scenario::{Declared, Inputs, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, UsageError};
+use surgbench_core::{Family, Vec3};
 
 /// Large deflection under a dead tip force (tip angle up to ~70 degrees).
-pub struct CantileverTipLoad;
-
-const INFO: ScenarioInfo = ScenarioInfo {
-    id: "cantilever-tip-load",
-    description: "clamped rod, large deflection under a dead tip force",
-    family: Family::Rod,
-    reference: "elastica by shooting (1e-10), checked against Bisshopp & Drucker (1945)",
-    primary_error: "tip_error_rel",
+pub const CANTILEVER_TIP_LOAD: Declared<TipLoadParams> = Declared {
+    info: ScenarioInfo {
+        id: "cantilever-tip-load",
+        description: "clamped rod, large deflection under a dead tip force",
+        family: Family::Rod,
+        reference: "elastica by shooting (1e-10), checked against Bisshopp & Drucker (1945)",
+        primary_error: "tip_error_rel",
+        params: TipLoadParams::SPECS,
+        sweep: SEGMENTS,
+        quick: 3,
+    },
+    datasets: None,
+    build,
 };
 
 params! {
@@ -41,44 +46,32 @@ params! {
     }
 }
 
-impl Scenario for CantileverTipLoad {
-    fn info(&self) -> &'static ScenarioInfo {
-        &INFO
+fn build(p: &TipLoadParams, _: &Inputs) -> Result<ScenarioRun, UsageError> {
+    let c = rod_case!(p);
+    let q = c.weight_per_length(p.gravity);
+    let force = p.tip_force;
+    if q == 0.0 && force == 0.0 {
+        return Err(UsageError(
+            "cantilever-tip-load needs tip_force > 0 or gravity > 0".into(),
+        ));
     }
-    fn params(&self) -> &'static [ParamSpec] {
-        TipLoadParams::SPECS
+    let alpha = force * c.length * c.length / c.ei();
+    if alpha > 10.0 {
+        return Err(UsageError(format!(
+            "tip load P L^2/(EI) = {alpha:.3} exceeds 10, past the tabulated elastica range this scenario is checked on"
+        )));
     }
-    fn sweep(&self) -> Vec<Fidelity> {
-        sweep_of("segments", &[10.0, 20.0, 40.0, 80.0])
+    let reference = elastica::solve(c.length, c.ei(), q, force, 4000).map_err(|e| UsageError(e.to_string()))?;
+    let mut scene = c.scene(CANTILEVER_TIP_LOAD.info.id, p.duration, p.settle_tol);
+    scene.gravity = Vec3::new(0.0, 0.0, -p.gravity);
+    let mut body = c.body();
+    body.tip_force = Vec3::new(0.0, 0.0, -force);
+    scene.bodies.push(body.into());
+    Ok(CantileverRun {
+        eb_tip: elastica::eb_tip_force(force, c.length, c.ei(), c.length)
+            + elastica::eb_uniform_tip(q, c.length, c.ei()),
+        reference,
+        load: q * c.length + force,
     }
-    fn instantiate_at(&self, params: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        let p = TipLoadParams::of(params);
-        let c = rod_case!(p);
-        let q = c.weight_per_length(p.gravity);
-        let force = p.tip_force;
-        if q == 0.0 && force == 0.0 {
-            return Err(UsageError(
-                "cantilever-tip-load needs tip_force > 0 or gravity > 0".into(),
-            ));
-        }
-        let alpha = force * c.length * c.length / c.ei();
-        if alpha > 10.0 {
-            return Err(UsageError(format!(
-                "tip load P L^2/(EI) = {alpha:.3} exceeds 10, past the tabulated elastica range this scenario is checked on"
-            )));
-        }
-        let reference = elastica::solve(c.length, c.ei(), q, force, 4000).map_err(|e| UsageError(e.to_string()))?;
-        let mut scene = c.scene(INFO.id, p.duration, p.settle_tol);
-        scene.gravity = Vec3::new(0.0, 0.0, -p.gravity);
-        let mut body = c.body();
-        body.tip_force = Vec3::new(0.0, 0.0, -force);
-        scene.bodies.push(body.into());
-        Ok(Box::new(CantileverRun {
-            scene,
-            eb_tip: elastica::eb_tip_force(force, c.length, c.ei(), c.length)
-                + elastica::eb_uniform_tip(q, c.length, c.ei()),
-            reference,
-            load: q * c.length + force,
-        }))
-    }
+    .into_run(scene))
 }

@@ -10,19 +10,22 @@ mod cantilever_gravity;
 mod cantilever_tip_load;
 mod torque_transfer;
 
-pub use cantilever_gravity::CantileverGravity;
-pub use cantilever_tip_load::CantileverTipLoad;
-pub use torque_transfer::TorqueTransfer;
+pub use cantilever_gravity::{CANTILEVER_GRAVITY, GravityParams};
+pub use cantilever_tip_load::{CANTILEVER_TIP_LOAD, TipLoadParams};
+pub use torque_transfer::{TORQUE_TRANSFER, TorqueParams};
 
 use crate::references::elastica::Elastica;
-use crate::scenario::{Metrics, ParamSpec, Range, Scenario};
+use crate::scenario::{Metrics, ParamSpec, Range, Scenario, Sweep};
 use std::f64::consts::PI;
 use surgbench_core::{Observation, RodBody, RodObs, Scene, Settle, Vec3};
 
 /// Every rod scenario, in report order.
 pub fn all() -> Vec<&'static dyn Scenario> {
-    vec![&CantileverGravity, &CantileverTipLoad, &TorqueTransfer]
+    vec![&CANTILEVER_GRAVITY, &CANTILEVER_TIP_LOAD, &TORQUE_TRANSFER]
 }
+
+/// The sweep every rod statics scene runs: 10 to 80 segments.
+const SEGMENTS: Sweep = Sweep::Knob("segments", &[10.0, 20.0, 40.0, 80.0]);
 
 const fn p(name: &'static str, default: f64, unit: &'static str, range: Range, doc: &'static str) -> ParamSpec {
     ParamSpec::new(name, default, unit, range, doc)

@@ -1,24 +1,29 @@
 //! `torque-transfer`: a straight rod whose clamp turns about its axis; the
 //! tip's twist must follow (closed form: uniform static twist).
 
-use super::{DENSITY, DURATION, LENGTH, POISSON, RADIUS, RodCase, SETTLE, YOUNG, rod_case};
+use super::{DENSITY, DURATION, LENGTH, POISSON, RADIUS, RodCase, SEGMENTS, SETTLE, YOUNG, rod_case};
 use crate::params;
 use crate::scenario::{
-    Metrics, ParamSpec, Params, Range, Scenario, ScenarioInfo, ScenarioRun, Scorer, UsageError, sweep_of,
+    Declared, Inputs, Metrics, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, UsageError,
 };
 use std::f64::consts::PI;
 use surgbench_core::frames::signed_angle;
-use surgbench_core::{ControlTimeline, Family, Fidelity, Observation, Scene, Vec3};
+use surgbench_core::{ControlTimeline, Family, Observation, Vec3};
 
 /// Straight rod, base rotated by a prescribed angle: the tip must follow.
-pub struct TorqueTransfer;
-
-const INFO: ScenarioInfo = ScenarioInfo {
-    id: "torque-transfer",
-    description: "straight rod, clamp rotated about its axis: the tip twist must follow",
-    family: Family::Rod,
-    reference: "closed form: uniform static twist, tip angle = base_twist + T L/(GJ)",
-    primary_error: "twist_error_rad",
+pub const TORQUE_TRANSFER: Declared<TorqueParams> = Declared {
+    info: ScenarioInfo {
+        id: "torque-transfer",
+        description: "straight rod, clamp rotated about its axis: the tip twist must follow",
+        family: Family::Rod,
+        reference: "closed form: uniform static twist, tip angle = base_twist + T L/(GJ)",
+        primary_error: "twist_error_rad",
+        params: TorqueParams::SPECS,
+        sweep: SEGMENTS,
+        quick: 3,
+    },
+    datasets: None,
+    build,
 };
 
 params! {
@@ -49,11 +54,9 @@ params! {
 }
 
 struct TorqueRun {
-    scene: Scene,
     length: f64,
     twist: f64,
     torque: f64,
-    gj: f64,
 }
 
 /// Wrap an angle difference to (-pi, pi].
@@ -65,7 +68,7 @@ fn wrap(a: f64) -> f64 {
     x
 }
 
-impl TorqueRun {
+impl Pointwise for TorqueRun {
     fn score(&self, obs: &Observation) -> Metrics {
         let mut m = Metrics::new();
         let Some(r) = obs.rods.first() else {
@@ -88,56 +91,28 @@ impl TorqueRun {
     }
 }
 
-impl ScenarioRun for TorqueRun {
-    fn scene(&self) -> &Scene {
-        &self.scene
+fn build(p: &TorqueParams, _: &Inputs) -> Result<ScenarioRun, UsageError> {
+    let c = rod_case!(p);
+    let base = p.base_twist;
+    let torque = p.tip_torque;
+    if (torque * c.length / c.ei()).abs() > 1.0 {
+        return Err(UsageError(format!(
+            "tip_torque: |T| L/(EI) = {:.3} > 1 approaches torsional buckling of the cantilever; the straight-rod closed form no longer applies",
+            (torque * c.length / c.ei()).abs()
+        )));
     }
-    fn scorer(&self) -> Box<dyn Scorer + '_> {
-        Box::new(|obs: &Observation| self.score(obs))
-    }
-    fn energy_scale(&self) -> f64 {
-        (self.gj / self.length) * (1.0 + self.twist * self.twist)
-    }
-    fn length_scale(&self) -> f64 {
-        self.length
-    }
-    fn reference_tip(&self) -> Option<[f64; 3]> {
-        Some([self.length, 0.0, 0.0])
-    }
-}
-
-impl Scenario for TorqueTransfer {
-    fn info(&self) -> &'static ScenarioInfo {
-        &INFO
-    }
-    fn params(&self) -> &'static [ParamSpec] {
-        TorqueParams::SPECS
-    }
-    fn sweep(&self) -> Vec<Fidelity> {
-        sweep_of("segments", &[10.0, 20.0, 40.0, 80.0])
-    }
-    fn instantiate_at(&self, params: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        let p = TorqueParams::of(params);
-        let c = rod_case!(p);
-        let base = p.base_twist;
-        let torque = p.tip_torque;
-        if (torque * c.length / c.ei()).abs() > 1.0 {
-            return Err(UsageError(format!(
-                "tip_torque: |T| L/(EI) = {:.3} > 1 approaches torsional buckling of the cantilever; the straight-rod closed form no longer applies",
-                (torque * c.length / c.ei()).abs()
-            )));
-        }
-        let mut scene = c.scene(INFO.id, p.duration, p.settle_tol);
-        scene.control = ControlTimeline::hold_rotation(base);
-        let mut body = c.body();
-        body.tip_torque = Vec3::new(torque, 0.0, 0.0);
-        scene.bodies.push(body.into());
-        Ok(Box::new(TorqueRun {
-            scene,
-            length: c.length,
-            twist: base + torque * c.length / c.gj(),
-            torque,
-            gj: c.gj(),
-        }))
-    }
+    let mut scene = c.scene(TORQUE_TRANSFER.info.id, p.duration, p.settle_tol);
+    scene.control = ControlTimeline::hold_rotation(base);
+    let mut body = c.body();
+    body.tip_torque = Vec3::new(torque, 0.0, 0.0);
+    scene.bodies.push(body.into());
+    let twist = base + torque * c.length / c.gj();
+    // Twice the twist energy GJ twist^2 / (2 L), plus GJ/L: a scale at zero twist.
+    let energy = (c.gj() / c.length) * (1.0 + twist * twist);
+    let run = TorqueRun {
+        length: c.length,
+        twist,
+        torque,
+    };
+    Ok(ScenarioRun::new(scene, run, energy, c.length).with_reference_tip([c.length, 0.0, 0.0]))
 }

@@ -4,11 +4,10 @@
 use super::*;
 use crate::params;
 use crate::references::BlockReference;
-use crate::scenario::{ParamSpec, Params, Range, Scenario, ScenarioInfo, ScenarioRun, Scorer, UsageError};
-use surgbench_core::{Family, Fidelity, Observation, Scene, TetMesh, TissueBody, Vec3};
-
-/// Block between a clamped base and a bonded plate, compressed.
-pub struct BlockCompression;
+use crate::scenario::{
+    Declared, Inputs, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
+};
+use surgbench_core::{Family, Observation, TetMesh, TissueBody, Vec3};
 
 params! {
     /// Parameters of `block-compression`.
@@ -33,14 +32,11 @@ params! {
 }
 
 struct BlockRun {
-    scene: Scene,
     mesh: TetMesh,
     force_ref: f64,
-    work: f64,
-    edge: f64,
 }
 
-impl BlockRun {
+impl Pointwise for BlockRun {
     fn score(&self, obs: &Observation) -> Metrics {
         let mut m = Metrics::new();
         let Some(t) = tissue_of(obs, &self.mesh) else {
@@ -58,69 +54,46 @@ impl BlockRun {
     }
 }
 
-impl ScenarioRun for BlockRun {
-    fn scene(&self) -> &Scene {
-        &self.scene
-    }
-    fn scorer(&self) -> Box<dyn Scorer + '_> {
-        Box::new(|obs: &Observation| self.score(obs))
-    }
-    fn energy_scale(&self) -> f64 {
-        self.work
-    }
-    fn length_scale(&self) -> f64 {
-        self.edge
-    }
-}
-
-const INFO: ScenarioInfo = ScenarioInfo {
-    id: "block-compression",
-    description: "cube clamped at the base, bonded plate on top pushed down to `strain`: plate force",
-    family: Family::Tissue,
-    reference: "scikit-fem P2, LINEAR elasticity (datasets/reference/block-compression): exact for small strain; at 20% large-strain laws differ by design",
-    primary_error: "force_error_rel",
+/// Block between a clamped base and a bonded plate, compressed.
+pub const BLOCK_COMPRESSION: Declared<BlockParams> = Declared {
+    info: ScenarioInfo {
+        id: "block-compression",
+        description: "cube clamped at the base, bonded plate on top pushed down to `strain`: plate force",
+        family: Family::Tissue,
+        reference: "scikit-fem P2, LINEAR elasticity (datasets/reference/block-compression): exact for small strain; at 20% large-strain laws differ by design",
+        primary_error: "force_error_rel",
+        params: BlockParams::SPECS,
+        sweep: Sweep::MeshLevels(None),
+        quick: 3,
+    },
+    datasets: None,
+    build,
 };
 
-impl Scenario for BlockCompression {
-    fn info(&self) -> &'static ScenarioInfo {
-        &INFO
-    }
-    fn params(&self) -> &'static [ParamSpec] {
-        BlockParams::SPECS
-    }
-    fn sweep(&self) -> Vec<Fidelity> {
-        level_sweep()
-    }
-    fn instantiate_at(&self, params: &Params, fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        let p = BlockParams::of(params);
-        let level = mesh_level(INFO.id, fidelity)?;
-        let reference = BlockReference::load(&datasets_dir())?;
-        let (edge, strain, e) = (p.edge, p.strain, p.youngs_modulus);
-        let force_ref = reference.force(strain, edge, e).ok_or_else(|| {
-            UsageError(format!(
-                "block-compression: strain {strain} is outside the reference's 0..{}",
-                reference.max_strain()
-            ))
-        })?;
-        let n = block_cells(level);
-        let mesh = mesh::block(Vec3::new(edge, edge, edge), [n, n, n]);
-        let tol = 1e-9 * edge;
-        let mut body = TissueBody::new(
-            mesh.clone(),
-            material(p.youngs_modulus, p.density, reference.poisson_ratio),
-        );
-        body.fixed_nodes = mesh::nodes_on_plane(&mesh, 2, 0.0, tol);
-        body.driven_nodes = mesh::nodes_on_plane(&mesh, 2, edge, tol)
-            .into_iter()
-            .map(|i| (i, Vec3::new(0.0, 0.0, -strain * edge)))
-            .collect();
-        Ok(Box::new(BlockRun {
-            scene: static_scene(INFO.id, body, p.ramp_time, p.duration, p.settle_tol)?,
-            mesh,
-            force_ref,
-            // Twice the linear work F d / 2: room for stiffer large-strain laws.
-            work: force_ref * strain * edge,
-            edge,
-        }))
-    }
+fn build(p: &BlockParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
+    let level = mesh_level(BLOCK_COMPRESSION.info.id, inputs.fidelity)?;
+    let reference = BlockReference::load(inputs.datasets)?;
+    let (edge, strain, e) = (p.edge, p.strain, p.youngs_modulus);
+    let force_ref = reference.force(strain, edge, e).ok_or_else(|| {
+        UsageError(format!(
+            "block-compression: strain {strain} is outside the reference's 0..{}",
+            reference.max_strain()
+        ))
+    })?;
+    let n = block_cells(level);
+    let mesh = mesh::block(Vec3::new(edge, edge, edge), [n, n, n]);
+    let tol = 1e-9 * edge;
+    let mut body = TissueBody::new(
+        mesh.clone(),
+        material(p.youngs_modulus, p.density, reference.poisson_ratio),
+    );
+    body.fixed_nodes = mesh::nodes_on_plane(&mesh, 2, 0.0, tol);
+    body.driven_nodes = mesh::nodes_on_plane(&mesh, 2, edge, tol)
+        .into_iter()
+        .map(|i| (i, Vec3::new(0.0, 0.0, -strain * edge)))
+        .collect();
+    let scene = static_scene(BLOCK_COMPRESSION.info.id, body, p.ramp_time, p.duration, p.settle_tol)?;
+    // Twice the linear work F d / 2: room for stiffer large-strain laws.
+    let work = force_ref * strain * edge;
+    Ok(ScenarioRun::new(scene, BlockRun { mesh, force_ref }, work, edge))
 }

@@ -2,30 +2,34 @@
 //! against the reference force at that step's load factor, summed over the
 //! run into an RMS error relative to the RMS reference force.
 
-use crate::scenario::{Metrics, Scorer};
-use surgbench_core::Observation;
+use crate::scenario::{Metrics, Reference, Scorer};
+use surgbench_core::{Observation, Scene};
 
 /// A scene whose force is scored along the whole load ramp.
-pub(super) trait ForceCurve: Sync {
+pub(super) trait ForceCurve: Send + Sync + 'static {
     /// Metrics of `obs` alone; `None` when `obs` holds no state of this
     /// scene (no tissue of its mesh, no indenter).
-    fn metrics(&self, obs: &Observation) -> Option<Metrics>;
+    fn metrics(&self, scene: &Scene, obs: &Observation) -> Option<Metrics>;
     /// `(force of obs, reference force at obs.time)` (N), or `None` where
     /// the reference has no value (below its first tabulated depth).
-    fn curve_point(&self, obs: &Observation) -> Option<(f64, f64)>;
+    fn curve_point(&self, scene: &Scene, obs: &Observation) -> Option<(f64, f64)>;
 }
 
+/// A [`ForceCurve`] as a scenario's [`Reference`].
+pub(super) struct Curve<S>(pub(super) S);
+
 /// One run's sums of `(F - F_ref)^2` and `F_ref^2` over its steps (N^2).
-pub(super) struct CurveScorer<'a, S> {
-    scene: &'a S,
+struct CurveScorer<'a, S> {
+    run: &'a S,
+    scene: &'a Scene,
     err2: f64,
     ref2: f64,
 }
 
-impl<'a, S: ForceCurve> CurveScorer<'a, S> {
-    /// A fresh scorer for one run of `scene`.
-    pub(super) fn boxed(scene: &'a S) -> Box<dyn Scorer + 'a> {
-        Box::new(Self {
+impl<S: ForceCurve> Reference for Curve<S> {
+    fn scorer<'a>(&'a self, scene: &'a Scene) -> Box<dyn Scorer + 'a> {
+        Box::new(CurveScorer {
+            run: &self.0,
             scene,
             err2: 0.0,
             ref2: 0.0,
@@ -35,7 +39,7 @@ impl<'a, S: ForceCurve> CurveScorer<'a, S> {
 
 impl<S: ForceCurve> Scorer for CurveScorer<'_, S> {
     fn observe_step(&mut self, obs: &Observation) {
-        if let Some((got, want)) = self.scene.curve_point(obs) {
+        if let Some((got, want)) = self.run.curve_point(self.scene, obs) {
             self.err2 += (got - want).powi(2);
             self.ref2 += want * want;
         }
@@ -44,7 +48,7 @@ impl<S: ForceCurve> Scorer for CurveScorer<'_, S> {
     /// over the steps seen relative to the RMS reference (once any reference
     /// force was seen).
     fn score(&self, obs: &Observation) -> Metrics {
-        let Some(mut m) = self.scene.metrics(obs) else {
+        let Some(mut m) = self.run.metrics(self.scene, obs) else {
             return Metrics::new();
         };
         if self.ref2 > 0.0 {

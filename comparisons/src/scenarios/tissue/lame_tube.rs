@@ -4,12 +4,11 @@
 use super::*;
 use crate::params;
 use crate::references::lame_radial_displacement;
-use crate::scenario::{ParamSpec, Params, Range, Scenario, ScenarioInfo, ScenarioRun, Scorer, UsageError};
+use crate::scenario::{
+    Declared, Inputs, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
+};
 use std::collections::BTreeMap;
-use surgbench_core::{Family, Fidelity, Observation, Scene, TetMesh, TissueBody, Vec3};
-
-/// Thick-walled tube under internal pressure, plane strain.
-pub struct LameTube;
+use surgbench_core::{Family, Observation, TetMesh, TissueBody, Vec3};
 
 params! {
     /// Parameters of `lame-tube`.
@@ -41,7 +40,6 @@ params! {
 }
 
 struct LameRun {
-    scene: Scene,
     mesh: TetMesh,
     /// `(a, b, p, E, nu)`.
     case: [f64; 5],
@@ -55,7 +53,7 @@ impl LameRun {
     }
 }
 
-impl LameRun {
+impl Pointwise for LameRun {
     fn score(&self, obs: &Observation) -> Metrics {
         let mut m = Metrics::new();
         let Some(t) = tissue_of(obs, &self.mesh) else {
@@ -95,91 +93,73 @@ impl LameRun {
     }
 }
 
-impl ScenarioRun for LameRun {
-    fn scene(&self) -> &Scene {
-        &self.scene
-    }
-    fn scorer(&self) -> Box<dyn Scorer + '_> {
-        Box::new(|obs: &Observation| self.score(obs))
-    }
-    fn energy_scale(&self) -> f64 {
-        // Twice the work of the pressure on the inner wall of the quarter.
-        let [a, _, p, _, _] = self.case;
-        let h = self.mesh.nodes.iter().map(|x| x.z).fold(0.0, f64::max);
-        p * self.u(a) * (0.5 * PI * a * h)
-    }
-    fn length_scale(&self) -> f64 {
-        self.case[1]
-    }
-}
-
-const INFO: ScenarioInfo = ScenarioInfo {
-    id: "lame-tube",
-    description: "quarter of a thick-walled tube (axis z) under internal pressure, plane strain: radial displacement",
-    family: Family::Tissue,
-    reference: "Lamé closed form, plane strain (Timoshenko & Goodier Sec. 28); scikit-fem P2 agrees to 6.7e-4 (datasets/reference/lame-tube)",
-    primary_error: "rms_radial_error_rel",
+/// Thick-walled tube under internal pressure, plane strain.
+pub const LAME_TUBE: Declared<LameParams> = Declared {
+    info: ScenarioInfo {
+        id: "lame-tube",
+        description: "quarter of a thick-walled tube (axis z) under internal pressure, plane strain: radial displacement",
+        family: Family::Tissue,
+        reference: "Lamé closed form, plane strain (Timoshenko & Goodier Sec. 28); scikit-fem P2 agrees to 6.7e-4 (datasets/reference/lame-tube)",
+        primary_error: "rms_radial_error_rel",
+        params: LameParams::SPECS,
+        sweep: Sweep::MeshLevels(None),
+        quick: 3,
+    },
+    datasets: None,
+    build,
 };
 
-impl Scenario for LameTube {
-    fn info(&self) -> &'static ScenarioInfo {
-        &INFO
+fn build(p: &LameParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
+    let level = mesh_level(LAME_TUBE.info.id, inputs.fidelity)?;
+    let (a, b, h) = (p.inner_radius, p.outer_radius, p.height);
+    if !(b > a) {
+        return Err(UsageError(format!(
+            "lame-tube: outer_radius {b} m must exceed inner_radius {a} m"
+        )));
     }
-    fn params(&self) -> &'static [ParamSpec] {
-        LameParams::SPECS
+    let (pressure, e, nu) = (p.pressure, p.youngs_modulus, p.poisson_ratio);
+    if pressure / e > 0.05 {
+        return Err(UsageError(format!(
+            "lame-tube: pressure / youngs_modulus = {:.3} > 0.05 leaves the small-strain range of the closed form",
+            pressure / e
+        )));
     }
-    fn sweep(&self) -> Vec<Fidelity> {
-        level_sweep()
-    }
-    fn instantiate_at(&self, params: &Params, fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        let p = LameParams::of(params);
-        let level = mesh_level(INFO.id, fidelity)?;
-        let (a, b, h) = (p.inner_radius, p.outer_radius, p.height);
-        if !(b > a) {
-            return Err(UsageError(format!(
-                "lame-tube: outer_radius {b} m must exceed inner_radius {a} m"
-            )));
+    // 2^(level+1) cells through the wall, three times as many around
+    // the quarter, and enough along z to keep cells near cubic.
+    let n_r = 2 << level;
+    let n_t = 3 * n_r;
+    let n_z = ((h / ((b - a) / n_r as f64)).round() as usize).clamp(1, 4 * n_r);
+    let mesh = mesh::tube_sector(a, b, h, PI / 2.0, n_t, n_r, n_z);
+    let tol = 1e-9 * b;
+    let mut axes: BTreeMap<usize, [bool; 3]> = BTreeMap::new();
+    let mut hold = |nodes: Vec<usize>, k: usize| {
+        for i in nodes {
+            axes.entry(i).or_insert([false; 3])[k] = true;
         }
-        let (pressure, e, nu) = (p.pressure, p.youngs_modulus, p.poisson_ratio);
-        if pressure / e > 0.05 {
-            return Err(UsageError(format!(
-                "lame-tube: pressure / youngs_modulus = {:.3} > 0.05 leaves the small-strain range of the closed form",
-                pressure / e
-            )));
-        }
-        // 2^(level+1) cells through the wall, three times as many around
-        // the quarter, and enough along z to keep cells near cubic.
-        let n_r = 2 << level;
-        let n_t = 3 * n_r;
-        let n_z = ((h / ((b - a) / n_r as f64)).round() as usize).clamp(1, 4 * n_r);
-        let mesh = mesh::tube_sector(a, b, h, PI / 2.0, n_t, n_r, n_z);
-        let tol = 1e-9 * b;
-        let mut axes: BTreeMap<usize, [bool; 3]> = BTreeMap::new();
-        let mut hold = |nodes: Vec<usize>, k: usize| {
-            for i in nodes {
-                axes.entry(i).or_insert([false; 3])[k] = true;
-            }
-        };
-        hold(mesh::nodes_on_plane(&mesh, 1, 0.0, tol), 1);
-        hold(mesh::nodes_on_plane(&mesh, 0, 0.0, tol), 0);
-        hold(mesh::nodes_on_plane(&mesh, 2, 0.0, tol), 2);
-        hold(mesh::nodes_on_plane(&mesh, 2, h, tol), 2);
-        let inner = mesh::nodes_on_cylinder(&mesh, a, tol);
-        let on_inner: HashSet<usize> = inner.iter().copied().collect();
-        let mut body = TissueBody::new(mesh.clone(), material(p.youngs_modulus, p.density, nu));
-        body.partial_fixed = axes.into_iter().collect();
-        // Boundary faces are ordered with the outward normal: on the inner
-        // wall it points towards the axis, the pressure pushes outwards.
-        body.pressure_faces = mesh::boundary_faces(&mesh)
-            .into_iter()
-            .filter(|f| f.iter().all(|i| on_inner.contains(i)))
-            .map(|f| (f, pressure))
-            .collect();
-        Ok(Box::new(LameRun {
-            scene: static_scene(INFO.id, body, p.ramp_time, p.duration, p.settle_tol)?,
-            mesh,
-            case: [a, b, pressure, e, nu],
-            inner,
-        }))
-    }
+    };
+    hold(mesh::nodes_on_plane(&mesh, 1, 0.0, tol), 1);
+    hold(mesh::nodes_on_plane(&mesh, 0, 0.0, tol), 0);
+    hold(mesh::nodes_on_plane(&mesh, 2, 0.0, tol), 2);
+    hold(mesh::nodes_on_plane(&mesh, 2, h, tol), 2);
+    let inner = mesh::nodes_on_cylinder(&mesh, a, tol);
+    let on_inner: HashSet<usize> = inner.iter().copied().collect();
+    let mut body = TissueBody::new(mesh.clone(), material(p.youngs_modulus, p.density, nu));
+    body.partial_fixed = axes.into_iter().collect();
+    // Boundary faces are ordered with the outward normal: on the inner
+    // wall it points towards the axis, the pressure pushes outwards.
+    body.pressure_faces = mesh::boundary_faces(&mesh)
+        .into_iter()
+        .filter(|f| f.iter().all(|i| on_inner.contains(i)))
+        .map(|f| (f, pressure))
+        .collect();
+    let scene = static_scene(LAME_TUBE.info.id, body, p.ramp_time, p.duration, p.settle_tol)?;
+    let run = LameRun {
+        mesh,
+        case: [a, b, pressure, e, nu],
+        inner,
+    };
+    // Twice the work of the pressure on the inner wall of the quarter.
+    let top = run.mesh.nodes.iter().map(|x| x.z).fold(0.0, f64::max);
+    let work = pressure * run.u(a) * (0.5 * PI * a * top);
+    Ok(ScenarioRun::new(scene, run, work, b))
 }

@@ -36,18 +36,17 @@ mod volume_preservation;
 mod wall_indentation;
 mod wall_punch;
 
-use curve::{CurveScorer, ForceCurve};
+use curve::{Curve, ForceCurve};
 
-pub use block_compression::BlockCompression;
-pub use lame_tube::LameTube;
-pub use sphere_indentation::{SPHERE_DT, SphereIndentation, sphere_block_mesh, sphere_grading};
-pub use truth_cube::{CubeFrame, TRUTH_CUBE_EDGE, TruthCube, locate};
-pub use volume_preservation::{VolumePreservation, squash_twist};
-pub use wall_indentation::{WallIndentation, wall_sphere_cells, wall_sphere_mesh};
-pub use wall_punch::{FOOTPRINT_TOL, WallPunch, wall_cells, wall_clamped, wall_footprint, wall_mesh};
+pub use block_compression::{BLOCK_COMPRESSION, BlockParams};
+pub use lame_tube::{LAME_TUBE, LameParams};
+pub use sphere_indentation::{SPHERE_DT, SPHERE_INDENTATION, SphereParams, sphere_block_mesh, sphere_grading};
+pub use truth_cube::{CubeFrame, TRUTH_CUBE, TRUTH_CUBE_EDGE, TruthParams, locate};
+pub use volume_preservation::{VOLUME_PRESERVATION, VolumeParams, squash_twist};
+pub use wall_indentation::{WALL_INDENTATION, WallParams, wall_sphere_cells, wall_sphere_mesh};
+pub use wall_punch::{FOOTPRINT_TOL, PunchParams, WALL_PUNCH, wall_cells, wall_clamped, wall_footprint, wall_mesh};
 
-use crate::datasets::datasets_dir;
-use crate::scenario::{Metrics, ParamSpec, Range, Scenario, UsageError, sweep_of};
+use crate::scenario::{Metrics, ParamSpec, Range, Scenario, UsageError};
 use std::collections::HashSet;
 use std::f64::consts::PI;
 use surgbench_core::mesh;
@@ -65,13 +64,13 @@ pub const MAX_LEVEL: usize = 3;
 /// Every tissue scenario, in report order.
 pub fn all() -> Vec<&'static dyn Scenario> {
     vec![
-        &BlockCompression,
-        &LameTube,
-        &VolumePreservation,
-        &TruthCube,
-        &WallIndentation,
-        &WallPunch,
-        &SphereIndentation,
+        &BLOCK_COMPRESSION,
+        &LAME_TUBE,
+        &VOLUME_PRESERVATION,
+        &TRUTH_CUBE,
+        &WALL_INDENTATION,
+        &WALL_PUNCH,
+        &SPHERE_INDENTATION,
     ]
 }
 
@@ -107,12 +106,6 @@ const SETTLE: ParamSpec = ParamSpec::new(
 /// Cells per edge of the block meshes at `level`: `4 * 2^level`.
 pub fn block_cells(level: usize) -> usize {
     4 << level
-}
-
-/// The default sweep of every tissue scenario: mesh levels 0..=[`MAX_LEVEL`].
-pub fn level_sweep() -> Vec<Fidelity> {
-    let levels: Vec<f64> = (0..=MAX_LEVEL).map(|l| l as f64).collect();
-    sweep_of("mesh_level", &levels)
 }
 
 /// `fidelity.mesh_level` or [`DEFAULT_LEVEL`], rejected past [`MAX_LEVEL`].
@@ -240,18 +233,6 @@ fn rollers(mesh: &TetMesh, fixed: &[usize], held: impl Fn(&Vec3) -> [bool; 3]) -
 fn indenter_centre(scene: &Scene, t: f64) -> Option<Vec3> {
     let s = scene.control.command_at(t).insertion;
     scene.tissues().next()?.indenter.map(|i| i.centre_at(s))
-}
-
-/// Sweep of the sphere-contact scenes: mesh levels 0-3 with
-/// [`SPHERE_DT`] (8 quasi-static load steps over the default ramp).
-fn contact_sweep() -> Vec<Fidelity> {
-    (0..=MAX_LEVEL)
-        .map(|l| Fidelity {
-            mesh_level: Some(l),
-            dt: Some(SPHERE_DT),
-            ..Default::default()
-        })
-        .collect()
 }
 
 /// Young's modulus `e` (Pa), density `rho` (kg/m^3), Poisson ratio `nu`.

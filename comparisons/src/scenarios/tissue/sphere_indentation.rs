@@ -4,8 +4,8 @@
 use super::*;
 use crate::params;
 use crate::references::{hertz_contact_radius, hertz_force, sphere_force_exact};
-use crate::scenario::{ParamSpec, Params, Range, Scenario, ScenarioInfo, ScenarioRun, Scorer, UsageError};
-use surgbench_core::{Family, Fidelity, Observation, Scene, TetMesh, TissueBody, Vec3};
+use crate::scenario::{Declared, Inputs, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError};
+use surgbench_core::{Family, Observation, Scene, TetMesh, TissueBody, Vec3};
 
 /// Where the contact radius sits in the graded mesh's reference coordinate
 /// `s` (0..1): it spans `3 n / 8` cells of a mesh with `n` cells per edge.
@@ -49,46 +49,6 @@ pub fn sphere_block_mesh(a: f64, half_width: f64, n: usize) -> TetMesh {
     mesh::orient_positive(&mut m);
     m
 }
-
-/// A rigid sphere pressed into the flat top of a large block: Hertz.
-///
-/// The catheter tip, in its textbook form: a rigid frictionless
-/// sphere of radius `R` (the scene's [`surgbench_core::scene::SphereIndenter`],
-/// so it needs `Capability::TissueContact`) touches the top face `z = 0` of
-/// a block at the origin and moves down by `depth` (`delta`) along the
-/// ramp. One quarter is modelled: the block is `[0, W]^2 x [-W, 0]` with
-/// `W = size_ratio a` (`a = sqrt(R delta)` the Hertz contact radius),
-/// rollers on the symmetry planes `x = 0` (x held) and `y = 0` (y held),
-/// the bottom `z = -W` fixed, the outer sides free. The mesh
-/// ([`sphere_block_mesh`]) is graded: uniform cubes of size `a / (3 n / 8)`
-/// out to `2a` (the contact radius spans 1.5, 3, 6, 12 cells at mesh levels
-/// 0-3), growing outside.
-///
-/// The model reports the force the body exerts on the sphere as
-/// `hand_force`; the scene is a quarter, so the full force is
-/// `4 hand_force.z`. Scores: `force_error_rel` (primary) at full depth
-/// against Hertz ([`hertz_force`]), `force_curve_error_rel` (RMS over the
-/// ramp against `F_H(s delta)` at every step's load factor `s`, accumulated
-/// in [`ScenarioRun::observe_step`]), `contact_radius_error_rel` (the
-/// contact edge located between the last touching and first free surface
-/// node on the `y = 0` line, so resolved to half a cell:
-/// `contact_radius_resolution_rel` says how much), `penetration_over_depth`
-/// (deepest surface node inside the sphere), and
-/// `paraboloid_bias_rel` (the exact-sphere force of
-/// [`sphere_force_exact`] over Hertz, minus one: the part of the error that
-/// is Hertz's, not the model's).
-///
-/// Expected biases of Hertz against an exact solution of this scene (all
-/// make the block stiffer than Hertz, except the free sides and the
-/// sphere): the paraboloid, `-delta / (10 R)` to first order (`-0.1 %` at
-/// the default `delta / R = 0.01`); the finite depth, a layer bonded to a rigid base is
-/// stiffer by `1 + 0.88 a / h + ...` at `nu = 0.3` (Dimitriadis et al.
-/// 2002, Biophys. J. 82, eq. 12, with `h = W`: `+1.8 %` at `W = 50 a`);
-/// finite strain (the default corotational law; strains ~ `a / R`): of
-/// order `a / R = 10 %` times a small constant — the linear law
-/// (`material_law = 1`) removes it. Measured values are in
-/// `comparisons/tests/sphere_indentation.rs`.
-pub struct SphereIndentation;
 
 params! {
     /// Parameters of `sphere-indentation`.
@@ -136,7 +96,6 @@ params! {
 }
 
 struct SphereRun {
-    scene: Scene,
     mesh: TetMesh,
     radius: f64,
     depth: f64,
@@ -147,7 +106,6 @@ struct SphereRun {
     /// Top-surface nodes on the `y = 0` line, by rest `x`.
     line: Vec<usize>,
     top: Vec<usize>,
-    half_width: f64,
 }
 
 impl SphereRun {
@@ -158,10 +116,10 @@ impl SphereRun {
 }
 
 impl ForceCurve for SphereRun {
-    fn metrics(&self, obs: &Observation) -> Option<Metrics> {
+    fn metrics(&self, scene: &Scene, obs: &Observation) -> Option<Metrics> {
         let mut m = Metrics::new();
         let t = tissue_of(obs, &self.mesh)?;
-        let c = indenter_centre(&self.scene, obs.time)?;
+        let c = indenter_centre(scene, obs.time)?;
         let f = Self::force(obs);
         force_metrics(&mut m, f, self.force_ref);
         m.insert("paraboloid_bias_rel".into(), self.paraboloid_bias);
@@ -195,97 +153,110 @@ impl ForceCurve for SphereRun {
         common_metrics(&mut m, &self.mesh, t);
         Some(m)
     }
-    fn curve_point(&self, obs: &Observation) -> Option<(f64, f64)> {
-        let s = self.scene.control.command_at(obs.time).insertion;
+    fn curve_point(&self, scene: &Scene, obs: &Observation) -> Option<(f64, f64)> {
+        let s = scene.control.command_at(obs.time).insertion;
         // Hertz along the ramp: F(s) = F_ref s^(3/2) at depth s delta.
         let want = self.force_ref * s.max(0.0).powf(1.5);
         Some((Self::force(obs), want))
     }
 }
 
-impl ScenarioRun for SphereRun {
-    fn scene(&self) -> &Scene {
-        &self.scene
-    }
-    fn scorer(&self) -> Box<dyn Scorer + '_> {
-        CurveScorer::boxed(self)
-    }
-    fn energy_scale(&self) -> f64 {
-        // Hertz work (2/5) F delta on the quarter, with a factor 10 of room.
-        self.force_ref * self.depth
-    }
-    fn length_scale(&self) -> f64 {
-        self.half_width
-    }
-}
-
-const INFO: ScenarioInfo = ScenarioInfo {
-    id: "sphere-indentation",
-    description: "rigid frictionless sphere (R 1 mm) pressed into a large block (quarter, graded mesh): contact force and radius",
-    family: Family::Tissue,
-    reference: "Hertz 1882 (Johnson 1985 eq. 4.22-4.23): F = 4/3 E* sqrt(R) delta^1.5, a = sqrt(R delta); biased by the finite block (+~2 %) and the paraboloid (-0.1 %)",
-    primary_error: "force_error_rel",
+/// A rigid sphere pressed into the flat top of a large block: Hertz.
+///
+/// The catheter tip, in its textbook form: a rigid frictionless
+/// sphere of radius `R` (the scene's [`surgbench_core::scene::SphereIndenter`],
+/// so it needs `Capability::TissueContact`) touches the top face `z = 0` of
+/// a block at the origin and moves down by `depth` (`delta`) along the
+/// ramp. One quarter is modelled: the block is `[0, W]^2 x [-W, 0]` with
+/// `W = size_ratio a` (`a = sqrt(R delta)` the Hertz contact radius),
+/// rollers on the symmetry planes `x = 0` (x held) and `y = 0` (y held),
+/// the bottom `z = -W` fixed, the outer sides free. The mesh
+/// ([`sphere_block_mesh`]) is graded: uniform cubes of size `a / (3 n / 8)`
+/// out to `2a` (the contact radius spans 1.5, 3, 6, 12 cells at mesh levels
+/// 0-3), growing outside.
+///
+/// The model reports the force the body exerts on the sphere as
+/// `hand_force`; the scene is a quarter, so the full force is
+/// `4 hand_force.z`. Scores: `force_error_rel` (primary) at full depth
+/// against Hertz ([`hertz_force`]), `force_curve_error_rel` (RMS over the
+/// ramp against `F_H(s delta)` at every step's load factor `s`, accumulated
+/// in [`Scorer::observe_step`](crate::Scorer::observe_step)), `contact_radius_error_rel` (the
+/// contact edge located between the last touching and first free surface
+/// node on the `y = 0` line, so resolved to half a cell:
+/// `contact_radius_resolution_rel` says how much), `penetration_over_depth`
+/// (deepest surface node inside the sphere), and
+/// `paraboloid_bias_rel` (the exact-sphere force of
+/// [`sphere_force_exact`] over Hertz, minus one: the part of the error that
+/// is Hertz's, not the model's).
+///
+/// Expected biases of Hertz against an exact solution of this scene (all
+/// make the block stiffer than Hertz, except the free sides and the
+/// sphere): the paraboloid, `-delta / (10 R)` to first order (`-0.1 %` at
+/// the default `delta / R = 0.01`); the finite depth, a layer bonded to a rigid base is
+/// stiffer by `1 + 0.88 a / h + ...` at `nu = 0.3` (Dimitriadis et al.
+/// 2002, Biophys. J. 82, eq. 12, with `h = W`: `+1.8 %` at `W = 50 a`);
+/// finite strain (the default corotational law; strains ~ `a / R`): of
+/// order `a / R = 10 %` times a small constant — the linear law
+/// (`material_law = 1`) removes it. Measured values are in
+/// `comparisons/tests/sphere_indentation.rs`.
+pub const SPHERE_INDENTATION: Declared<SphereParams> = Declared {
+    info: ScenarioInfo {
+        id: "sphere-indentation",
+        description: "rigid frictionless sphere (R 1 mm) pressed into a large block (quarter, graded mesh): contact force and radius",
+        family: Family::Tissue,
+        reference: "Hertz 1882 (Johnson 1985 eq. 4.22-4.23): F = 4/3 E* sqrt(R) delta^1.5, a = sqrt(R delta); biased by the finite block (+~2 %) and the paraboloid (-0.1 %)",
+        primary_error: "force_error_rel",
+        params: SphereParams::SPECS,
+        sweep: Sweep::MeshLevels(Some(SPHERE_DT)),
+        quick: 2,
+    },
+    datasets: None,
+    build,
 };
 
-impl Scenario for SphereIndentation {
-    fn info(&self) -> &'static ScenarioInfo {
-        &INFO
+fn build(p: &SphereParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
+    let level = mesh_level(SPHERE_INDENTATION.info.id, inputs.fidelity)?;
+    let (radius, depth, e, nu) = (p.sphere_radius, p.depth, p.youngs_modulus, p.poisson_ratio);
+    if depth > 0.05 * radius {
+        return Err(UsageError(format!(
+            "sphere-indentation: depth {depth} m is past 0.05 sphere_radius ({} m): Hertz is a small-strain theory",
+            0.05 * radius
+        )));
     }
-    fn params(&self) -> &'static [ParamSpec] {
-        SphereParams::SPECS
-    }
-    /// Mesh levels 0-3 with 8 quasi-static load steps over the default ramp
-    /// (`dt = ramp / 8`). Level 3 (32^3 cells) costs `fem` about 10 min and
-    /// 2 GB per run (2 cores): the comparisons' TOML sweeps stop at 2.
-    fn sweep(&self) -> Vec<Fidelity> {
-        contact_sweep()
-    }
-    fn quick_sweep(&self) -> Vec<Fidelity> {
-        self.sweep().into_iter().take(2).collect()
-    }
-    fn instantiate_at(&self, params: &Params, fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        let p = SphereParams::of(params);
-        let level = mesh_level(INFO.id, fidelity)?;
-        let (radius, depth, e, nu) = (p.sphere_radius, p.depth, p.youngs_modulus, p.poisson_ratio);
-        if depth > 0.05 * radius {
-            return Err(UsageError(format!(
-                "sphere-indentation: depth {depth} m is past 0.05 sphere_radius ({} m): Hertz is a small-strain theory",
-                0.05 * radius
-            )));
-        }
-        let a = hertz_contact_radius(radius, depth);
-        let w = p.size_ratio * a;
-        let n = block_cells(level);
-        let mesh = sphere_block_mesh(a, w, n);
-        let tol = 1e-9 * w;
-        let mut body = TissueBody::new(mesh.clone(), material(p.youngs_modulus, p.density, nu));
-        body.fixed_nodes = mesh::nodes_on_plane(&mesh, 2, -w, tol);
-        body.partial_fixed = rollers(&mesh, &body.fixed_nodes, |x| {
-            [x.x.abs() <= tol, x.y.abs() <= tol, false]
-        });
-        body.indenter = Some(surgbench_core::scene::SphereIndenter {
-            centre: Vec3::new(0.0, 0.0, radius),
-            radius,
-            travel: Vec3::new(0.0, 0.0, -depth),
-        });
-        let top = mesh::nodes_on_plane(&mesh, 2, 0.0, tol);
-        let mut line: Vec<usize> = top.iter().copied().filter(|&i| mesh.nodes[i].y.abs() <= tol).collect();
-        line.sort_by(|&i, &j| mesh.nodes[i].x.total_cmp(&mesh.nodes[j].x));
-        let force_ref = hertz_force(radius, depth, e, nu);
-        let paraboloid_bias = sphere_force_exact(radius, depth, e, nu).0 / force_ref - 1.0;
-        Ok(Box::new(SphereRun {
-            scene: static_scene(INFO.id, body, p.ramp_time, p.duration, p.settle_tol)?,
-            mesh,
-            radius,
-            depth,
-            force_ref,
-            contact_radius: a,
-            paraboloid_bias,
-            line,
-            top,
-            half_width: w,
-        }))
-    }
+    let a = hertz_contact_radius(radius, depth);
+    let w = p.size_ratio * a;
+    let n = block_cells(level);
+    let mesh = sphere_block_mesh(a, w, n);
+    let tol = 1e-9 * w;
+    let mut body = TissueBody::new(mesh.clone(), material(p.youngs_modulus, p.density, nu));
+    body.fixed_nodes = mesh::nodes_on_plane(&mesh, 2, -w, tol);
+    body.partial_fixed = rollers(&mesh, &body.fixed_nodes, |x| {
+        [x.x.abs() <= tol, x.y.abs() <= tol, false]
+    });
+    body.indenter = Some(surgbench_core::scene::SphereIndenter {
+        centre: Vec3::new(0.0, 0.0, radius),
+        radius,
+        travel: Vec3::new(0.0, 0.0, -depth),
+    });
+    let top = mesh::nodes_on_plane(&mesh, 2, 0.0, tol);
+    let mut line: Vec<usize> = top.iter().copied().filter(|&i| mesh.nodes[i].y.abs() <= tol).collect();
+    line.sort_by(|&i, &j| mesh.nodes[i].x.total_cmp(&mesh.nodes[j].x));
+    let force_ref = hertz_force(radius, depth, e, nu);
+    let paraboloid_bias = sphere_force_exact(radius, depth, e, nu).0 / force_ref - 1.0;
+    let scene = static_scene(SPHERE_INDENTATION.info.id, body, p.ramp_time, p.duration, p.settle_tol)?;
+    // Hertz work (2/5) F delta on the quarter, with a factor 10 of room.
+    let work = force_ref * depth;
+    let run = SphereRun {
+        mesh,
+        radius,
+        depth,
+        force_ref,
+        contact_radius: a,
+        paraboloid_bias,
+        line,
+        top,
+    };
+    Ok(ScenarioRun::new(scene, Curve(run), work, w))
 }
 
 /// Time step of the sphere-indentation sweep (s): 8 quasi-static load

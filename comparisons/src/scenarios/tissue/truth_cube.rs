@@ -4,10 +4,12 @@
 use super::*;
 use crate::datasets::load_truth_cube;
 use crate::params;
-use crate::scenario::{ParamSpec, Params, Range, Scenario, ScenarioInfo, ScenarioRun, Scorer, UsageError};
+use crate::scenario::{
+    Declared, Inputs, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
+};
 use surgbench_core::Mat3;
 use surgbench_core::mesh::truth_cube as phantom;
-use surgbench_core::{Family, Fidelity, Observation, Scene, TetMesh, TissueBody, Vec3};
+use surgbench_core::{Family, Observation, TetMesh, TissueBody, Vec3};
 
 /// Edge of the Truth Cube (m), Kerdok et al. 2003.
 pub const TRUTH_CUBE_EDGE: f64 = 0.08;
@@ -122,17 +124,6 @@ pub fn locate(mesh: &TetMesh, p: &Vec3) -> Option<(usize, [f64; 4])> {
     best.map(|(e, w, _)| (e, w))
 }
 
-/// Truth Cube phantom under uniaxial compression between bonded plates.
-///
-/// Boundary conditions: bonded (no-slip) plates, the base held, the top
-/// moved down by the nominal strain times 80 mm; the only plate model the
-/// scene types express (a driven node is driven along all three axes). The
-/// data show the loaded face slipped: its nearest bead layer bulges about as
-/// much as the mid-height layers (0.9 mm at 5 %, 3.0 mm at 18.25 %, where a
-/// bonded FEM gives 0.3 and 1.1 mm) and drifts 1.3-1.9 mm sideways, so
-/// every model here carries a boundary-condition error of that size.
-pub struct TruthCube;
-
 params! {
     /// Parameters of `truth-cube`.
     ///
@@ -177,7 +168,6 @@ params! {
 }
 
 struct TruthRun {
-    scene: Scene,
     mesh: TetMesh,
     /// Containing tet and weights of every bead's rest position.
     cells: Vec<(usize, [f64; 4])>,
@@ -185,10 +175,9 @@ struct TruthRun {
     measured: Vec<Vec3>,
     /// Measured bead displacements' RMS at that level (m).
     data_rms: f64,
-    work: f64,
 }
 
-impl TruthRun {
+impl Pointwise for TruthRun {
     fn score(&self, obs: &Observation) -> Metrics {
         let mut m = Metrics::new();
         let Some(t) = tissue_of(obs, &self.mesh) else {
@@ -221,83 +210,73 @@ impl TruthRun {
     }
 }
 
-impl ScenarioRun for TruthRun {
-    fn scene(&self) -> &Scene {
-        &self.scene
-    }
-    fn scorer(&self) -> Box<dyn Scorer + '_> {
-        Box::new(|obs: &Observation| self.score(obs))
-    }
-    fn energy_scale(&self) -> f64 {
-        self.work
-    }
-    fn length_scale(&self) -> f64 {
-        TRUTH_CUBE_EDGE
-    }
-}
-
-const INFO: ScenarioInfo = ScenarioInfo {
-    id: "truth-cube",
-    description: "Truth Cube phantom (80 mm silicone, 343 beads) compressed between bonded plates: bead positions",
-    family: Family::Tissue,
-    reference: "phantom data, Kerdok et al. 2003 (datasets/phantom/truth-cube); literature material, nothing fitted; bonded plates",
-    primary_error: "rms_bead_error_m",
+/// Truth Cube phantom under uniaxial compression between bonded plates.
+///
+/// Boundary conditions: bonded (no-slip) plates, the base held, the top
+/// moved down by the nominal strain times 80 mm; the only plate model the
+/// scene types express (a driven node is driven along all three axes). The
+/// data show the loaded face slipped: its nearest bead layer bulges about as
+/// much as the mid-height layers (0.9 mm at 5 %, 3.0 mm at 18.25 %, where a
+/// bonded FEM gives 0.3 and 1.1 mm) and drifts 1.3-1.9 mm sideways, so
+/// every model here carries a boundary-condition error of that size.
+pub const TRUTH_CUBE: Declared<TruthParams> = Declared {
+    info: ScenarioInfo {
+        id: "truth-cube",
+        description: "Truth Cube phantom (80 mm silicone, 343 beads) compressed between bonded plates: bead positions",
+        family: Family::Tissue,
+        reference: "phantom data, Kerdok et al. 2003 (datasets/phantom/truth-cube); literature material, nothing fitted; bonded plates",
+        primary_error: "rms_bead_error_m",
+        params: TruthParams::SPECS,
+        sweep: Sweep::MeshLevels(None),
+        quick: 3,
+    },
+    datasets: None,
+    build,
 };
 
-impl Scenario for TruthCube {
-    fn info(&self) -> &'static ScenarioInfo {
-        &INFO
+fn build(p: &TruthParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
+    let level_f = p.strain_level;
+    if level_f.fract() != 0.0 {
+        return Err(UsageError(format!(
+            "truth-cube: strain_level must be 1, 2 or 3, got {level_f}"
+        )));
     }
-    fn params(&self) -> &'static [ParamSpec] {
-        TruthParams::SPECS
-    }
-    fn sweep(&self) -> Vec<Fidelity> {
-        level_sweep()
-    }
-    fn instantiate_at(&self, params: &Params, fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        let p = TruthParams::of(params);
-        let level_f = p.strain_level;
-        if level_f.fract() != 0.0 {
-            return Err(UsageError(format!(
-                "truth-cube: strain_level must be 1, 2 or 3, got {level_f}"
-            )));
-        }
-        let state = level_f as usize;
-        let level = mesh_level(INFO.id, fidelity)?;
-        let cube = load_truth_cube(&datasets_dir())?;
-        let frame = CubeFrame::fit(&cube, TRUTH_CUBE_EDGE).map_err(UsageError)?;
-        let strain = phantom::NOMINAL_STRAINS[state];
-        let edge = TRUTH_CUBE_EDGE;
-        let n = block_cells(level);
-        let mesh = mesh::block(Vec3::new(edge, edge, edge), [n, n, n]);
-        let cells = frame.beads[0]
-            .iter()
-            .map(|b| locate(&mesh, b).expect("block mesh has tets"))
-            .collect();
-        let measured = frame.beads[state].clone();
-        let data_rms = (frame.beads[0]
-            .iter()
-            .zip(&measured)
-            .map(|(a, b)| (b - a).norm_squared())
-            .sum::<f64>()
-            / measured.len() as f64)
-            .sqrt();
-        let tol = 1e-9 * edge;
-        let mut body = TissueBody::new(mesh.clone(), material(p.youngs_modulus, p.density, p.poisson_ratio));
-        body.fixed_nodes = mesh::nodes_on_plane(&mesh, 2, 0.0, tol);
-        body.driven_nodes = mesh::nodes_on_plane(&mesh, 2, edge, tol)
-            .into_iter()
-            .map(|i| (i, Vec3::new(0.0, 0.0, -strain * edge)))
-            .collect();
-        let e = p.youngs_modulus;
-        Ok(Box::new(TruthRun {
-            scene: static_scene(INFO.id, body, p.ramp_time, p.duration, p.settle_tol)?,
-            mesh,
-            cells,
-            measured,
-            data_rms,
-            // Bonded, nearly incompressible: a few times E V strain^2.
-            work: 4.0 * e * edge.powi(3) * strain * strain,
-        }))
-    }
+    let state = level_f as usize;
+    let level = mesh_level(TRUTH_CUBE.info.id, inputs.fidelity)?;
+    let cube = load_truth_cube(inputs.datasets)?;
+    let frame = CubeFrame::fit(&cube, TRUTH_CUBE_EDGE).map_err(UsageError)?;
+    let strain = phantom::NOMINAL_STRAINS[state];
+    let edge = TRUTH_CUBE_EDGE;
+    let n = block_cells(level);
+    let mesh = mesh::block(Vec3::new(edge, edge, edge), [n, n, n]);
+    let cells = frame.beads[0]
+        .iter()
+        .map(|b| locate(&mesh, b).expect("block mesh has tets"))
+        .collect();
+    let measured = frame.beads[state].clone();
+    let data_rms = (frame.beads[0]
+        .iter()
+        .zip(&measured)
+        .map(|(a, b)| (b - a).norm_squared())
+        .sum::<f64>()
+        / measured.len() as f64)
+        .sqrt();
+    let tol = 1e-9 * edge;
+    let mut body = TissueBody::new(mesh.clone(), material(p.youngs_modulus, p.density, p.poisson_ratio));
+    body.fixed_nodes = mesh::nodes_on_plane(&mesh, 2, 0.0, tol);
+    body.driven_nodes = mesh::nodes_on_plane(&mesh, 2, edge, tol)
+        .into_iter()
+        .map(|i| (i, Vec3::new(0.0, 0.0, -strain * edge)))
+        .collect();
+    let e = p.youngs_modulus;
+    let scene = static_scene(TRUTH_CUBE.info.id, body, p.ramp_time, p.duration, p.settle_tol)?;
+    // Bonded, nearly incompressible: a few times E V strain^2.
+    let work = 4.0 * e * edge.powi(3) * strain * strain;
+    let run = TruthRun {
+        mesh,
+        cells,
+        measured,
+        data_rms,
+    };
+    Ok(ScenarioRun::new(scene, run, work, TRUTH_CUBE_EDGE))
 }

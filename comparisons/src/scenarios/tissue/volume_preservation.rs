@@ -3,11 +3,10 @@
 
 use super::*;
 use crate::params;
-use crate::scenario::{ParamSpec, Params, Range, Scenario, ScenarioInfo, ScenarioRun, Scorer, UsageError};
-use surgbench_core::{Family, Fidelity, Observation, Scene, TetMesh, TissueBody, Vec3};
-
-/// Block squashed and twisted: nearly incompressible volume preservation.
-pub struct VolumePreservation;
+use crate::scenario::{
+    Declared, Inputs, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
+};
+use surgbench_core::{Family, Observation, TetMesh, TissueBody, Vec3};
 
 params! {
     /// Parameters of `volume-preservation`.
@@ -43,13 +42,10 @@ params! {
 }
 
 struct VolumeRun {
-    scene: Scene,
     mesh: TetMesh,
-    work: f64,
-    edge: f64,
 }
 
-impl VolumeRun {
+impl Pointwise for VolumeRun {
     fn score(&self, obs: &Observation) -> Metrics {
         let mut m = Metrics::new();
         let Some(t) = tissue_of(obs, &self.mesh) else {
@@ -69,21 +65,6 @@ impl VolumeRun {
     }
 }
 
-impl ScenarioRun for VolumeRun {
-    fn scene(&self) -> &Scene {
-        &self.scene
-    }
-    fn scorer(&self) -> Box<dyn Scorer + '_> {
-        Box::new(|obs: &Observation| self.score(obs))
-    }
-    fn energy_scale(&self) -> f64 {
-        self.work
-    }
-    fn length_scale(&self) -> f64 {
-        self.edge
-    }
-}
-
 /// Displacement of a top-face node `x0` (m) of a cube of edge `edge`:
 /// rotation by `twist` about the vertical axis through the face centre,
 /// then down by `compression * edge`.
@@ -93,44 +74,37 @@ pub fn squash_twist(x0: &Vec3, edge: f64, compression: f64, twist: f64) -> Vec3 
     c + rot * (x0 - c) - Vec3::new(0.0, 0.0, compression * edge) - x0
 }
 
-const INFO: ScenarioInfo = ScenarioInfo {
-    id: "volume-preservation",
-    description: "cube clamped at the base, top face squashed and twisted, nearly incompressible: volume change",
-    family: Family::Tissue,
-    reference: "exact volume (V = V0 for an incompressible solid); for nu < 0.5 a property metric, ~(1-2nu) x compression expected",
-    primary_error: "volume_change_rel",
+/// Block squashed and twisted: nearly incompressible volume preservation.
+pub const VOLUME_PRESERVATION: Declared<VolumeParams> = Declared {
+    info: ScenarioInfo {
+        id: "volume-preservation",
+        description: "cube clamped at the base, top face squashed and twisted, nearly incompressible: volume change",
+        family: Family::Tissue,
+        reference: "exact volume (V = V0 for an incompressible solid); for nu < 0.5 a property metric, ~(1-2nu) x compression expected",
+        primary_error: "volume_change_rel",
+        params: VolumeParams::SPECS,
+        sweep: Sweep::MeshLevels(None),
+        quick: 3,
+    },
+    datasets: None,
+    build,
 };
 
-impl Scenario for VolumePreservation {
-    fn info(&self) -> &'static ScenarioInfo {
-        &INFO
-    }
-    fn params(&self) -> &'static [ParamSpec] {
-        VolumeParams::SPECS
-    }
-    fn sweep(&self) -> Vec<Fidelity> {
-        level_sweep()
-    }
-    fn instantiate_at(&self, params: &Params, fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        let p = VolumeParams::of(params);
-        let level = mesh_level(INFO.id, fidelity)?;
-        let (edge, c, twist) = (p.edge, p.compression, p.twist);
-        let n = block_cells(level);
-        let mesh = mesh::block(Vec3::new(edge, edge, edge), [n, n, n]);
-        let tol = 1e-9 * edge;
-        let mut body = TissueBody::new(mesh.clone(), material(p.youngs_modulus, p.density, p.poisson_ratio));
-        body.fixed_nodes = mesh::nodes_on_plane(&mesh, 2, 0.0, tol);
-        body.driven_nodes = mesh::nodes_on_plane(&mesh, 2, edge, tol)
-            .into_iter()
-            .map(|i| (i, squash_twist(&mesh.nodes[i], edge, c, twist)))
-            .collect();
-        let e = p.youngs_modulus;
-        Ok(Box::new(VolumeRun {
-            scene: static_scene(INFO.id, body, p.ramp_time, p.duration, p.settle_tol)?,
-            mesh,
-            // Elastic energy scale E V (strain^2 + shear^2), twice over.
-            work: 2.0 * e * edge.powi(3) * (c * c + twist * twist),
-            edge,
-        }))
-    }
+fn build(p: &VolumeParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
+    let level = mesh_level(VOLUME_PRESERVATION.info.id, inputs.fidelity)?;
+    let (edge, c, twist) = (p.edge, p.compression, p.twist);
+    let n = block_cells(level);
+    let mesh = mesh::block(Vec3::new(edge, edge, edge), [n, n, n]);
+    let tol = 1e-9 * edge;
+    let mut body = TissueBody::new(mesh.clone(), material(p.youngs_modulus, p.density, p.poisson_ratio));
+    body.fixed_nodes = mesh::nodes_on_plane(&mesh, 2, 0.0, tol);
+    body.driven_nodes = mesh::nodes_on_plane(&mesh, 2, edge, tol)
+        .into_iter()
+        .map(|i| (i, squash_twist(&mesh.nodes[i], edge, c, twist)))
+        .collect();
+    let e = p.youngs_modulus;
+    let scene = static_scene(VOLUME_PRESERVATION.info.id, body, p.ramp_time, p.duration, p.settle_tol)?;
+    // Elastic energy scale E V (strain^2 + shear^2), twice over.
+    let work = 2.0 * e * edge.powi(3) * (c * c + twist * twist);
+    Ok(ScenarioRun::new(scene, VolumeRun { mesh }, work, edge))
 }

@@ -5,8 +5,8 @@
 use super::*;
 use crate::params;
 use crate::references::WallReference;
-use crate::scenario::{ParamSpec, Params, Range, Scenario, ScenarioInfo, ScenarioRun, Scorer, UsageError};
-use surgbench_core::{Family, Fidelity, Observation, Scene, TetMesh, TissueBody, Vec3};
+use crate::scenario::{Declared, Inputs, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError};
+use surgbench_core::{Family, Observation, Scene, TetMesh, TissueBody, Vec3};
 
 /// Cells `(n_r, n_s)` of the quarter wall mesh at `level`: `2^(level+1)`
 /// through the wall and twice that along the arc and along z, so each level
@@ -35,33 +35,6 @@ pub fn wall_sphere_mesh(r: &WallReference, level: usize) -> TetMesh {
     mesh::orient_positive(&mut m);
     m
 }
-
-/// A spherical catheter tip indenting a vessel-wall segment.
-///
-/// The scene: a rigid frictionless sphere of radius `R` (1 mm: a 6F
-/// catheter is 2 mm across) inside the lumen touches the inner wall at
-/// `theta = 0, z = length/2` and moves radially outward (`+x`) by `depth`
-/// along the load ramp ([`TissueBody::indenter`], so it needs
-/// `Capability::TissueContact`); the contact footprint grows with the
-/// depth. One quarter is modelled (`y >= 0`, `z >= length/2`) with rollers
-/// on the symmetry planes (`y` held on `y = 0`, `z` on `z = length/2`), the
-/// far end and the straight edge clamped, the outer surface free; the mesh
-/// ([`wall_sphere_mesh`]) is the reference's graded map. Geometry and
-/// material as [`WallPunch`] (inner radius 4 mm, wall 1 mm, 120 deg sector
-/// 8 mm long, `E = 1 MPa`, `nu = 0.45`, Holzapfel, Gasser & Ogden 2000).
-///
-/// The model reports the force the body exerts on the sphere as
-/// `hand_force`; the full force is `-4 hand_force.x`. Scores against the
-/// scikit-fem reference ([`WallReference`]): `force_error_rel` (primary)
-/// at full depth, `force_curve_error_rel` (RMS over the ramp against the
-/// reference at every step's depth `s depth`, accumulated in
-/// [`ScenarioRun::observe_step`]), `surface_error_rel` (the inner wall's
-/// radial displacement along the axial line through the tip and around the
-/// circumferential line through it, RMS error over RMS reference),
-/// `penetration_over_depth` (deepest inner-wall node inside the sphere) and
-/// `contact_extent_z_m` beside the reference's (the farthest inner-wall
-/// node along z touching the sphere: a cell's resolution).
-pub struct WallIndentation;
 
 /// Young's modulus of the vessel-wall scenes (`wall-indentation`, `wall-punch`).
 pub(super) const WALL_E: ParamSpec = ParamSpec::new(
@@ -108,7 +81,6 @@ params! {
 }
 
 struct WallSphereRun {
-    scene: Scene,
     mesh: TetMesh,
     depth: f64,
     force_ref: f64,
@@ -132,9 +104,9 @@ impl WallSphereRun {
 }
 
 impl ForceCurve for WallSphereRun {
-    fn metrics(&self, obs: &Observation) -> Option<Metrics> {
+    fn metrics(&self, scene: &Scene, obs: &Observation) -> Option<Metrics> {
         let mut m = Metrics::new();
-        let (Some(t), Some(c)) = (tissue_of(obs, &self.mesh), indenter_centre(&self.scene, obs.time)) else {
+        let (Some(t), Some(c)) = (tissue_of(obs, &self.mesh), indenter_centre(scene, obs.time)) else {
             return None;
         };
         let f = Self::force(obs);
@@ -168,109 +140,111 @@ impl ForceCurve for WallSphereRun {
         common_metrics(&mut m, &self.mesh, t);
         Some(m)
     }
-    fn curve_point(&self, obs: &Observation) -> Option<(f64, f64)> {
-        let s = self.scene.control.command_at(obs.time).insertion;
+    fn curve_point(&self, scene: &Scene, obs: &Observation) -> Option<(f64, f64)> {
+        let s = scene.control.command_at(obs.time).insertion;
         // The reference at this step's depth; none below its first row.
         let want = self.reference.force(s * self.depth, self.e_scale)?;
         Some((Self::force(obs), want))
     }
 }
 
-impl ScenarioRun for WallSphereRun {
-    fn scene(&self) -> &Scene {
-        &self.scene
-    }
-    fn scorer(&self) -> Box<dyn Scorer + '_> {
-        CurveScorer::boxed(self)
-    }
-    fn energy_scale(&self) -> f64 {
-        // The work is below F depth (the force grows with the depth).
-        self.force_ref * self.depth
-    }
-    fn length_scale(&self) -> f64 {
-        self.reference.length
-    }
-}
-
-const INFO: ScenarioInfo = ScenarioInfo {
-    id: "wall-indentation",
-    description: "vessel-wall sector (r 4-5 mm, quarter) indented by a rigid frictionless sphere (catheter tip, R 1 mm): force-depth curve, deformed inner wall, contact extent",
-    family: Family::Tissue,
-    reference: "scikit-fem P2, LINEAR elasticity, frictionless unilateral contact with the exact gap (datasets/reference/wall-indentation)",
-    primary_error: "force_error_rel",
+/// A spherical catheter tip indenting a vessel-wall segment.
+///
+/// The scene: a rigid frictionless sphere of radius `R` (1 mm: a 6F
+/// catheter is 2 mm across) inside the lumen touches the inner wall at
+/// `theta = 0, z = length/2` and moves radially outward (`+x`) by `depth`
+/// along the load ramp ([`TissueBody::indenter`], so it needs
+/// `Capability::TissueContact`); the contact footprint grows with the
+/// depth. One quarter is modelled (`y >= 0`, `z >= length/2`) with rollers
+/// on the symmetry planes (`y` held on `y = 0`, `z` on `z = length/2`), the
+/// far end and the straight edge clamped, the outer surface free; the mesh
+/// ([`wall_sphere_mesh`]) is the reference's graded map. Geometry and
+/// material as [`WALL_PUNCH`] (inner radius 4 mm, wall 1 mm, 120 deg sector
+/// 8 mm long, `E = 1 MPa`, `nu = 0.45`, Holzapfel, Gasser & Ogden 2000).
+///
+/// The model reports the force the body exerts on the sphere as
+/// `hand_force`; the full force is `-4 hand_force.x`. Scores against the
+/// scikit-fem reference ([`WallReference`]): `force_error_rel` (primary)
+/// at full depth, `force_curve_error_rel` (RMS over the ramp against the
+/// reference at every step's depth `s depth`, accumulated in
+/// [`Scorer::observe_step`](crate::Scorer::observe_step)), `surface_error_rel` (the inner wall's
+/// radial displacement along the axial line through the tip and around the
+/// circumferential line through it, RMS error over RMS reference),
+/// `penetration_over_depth` (deepest inner-wall node inside the sphere) and
+/// `contact_extent_z_m` beside the reference's (the farthest inner-wall
+/// node along z touching the sphere: a cell's resolution).
+pub const WALL_INDENTATION: Declared<WallParams> = Declared {
+    info: ScenarioInfo {
+        id: "wall-indentation",
+        description: "vessel-wall sector (r 4-5 mm, quarter) indented by a rigid frictionless sphere (catheter tip, R 1 mm): force-depth curve, deformed inner wall, contact extent",
+        family: Family::Tissue,
+        reference: "scikit-fem P2, LINEAR elasticity, frictionless unilateral contact with the exact gap (datasets/reference/wall-indentation)",
+        primary_error: "force_error_rel",
+        params: WallParams::SPECS,
+        sweep: Sweep::MeshLevels(Some(SPHERE_DT)),
+        quick: 2,
+    },
+    datasets: None,
+    build,
 };
 
-impl Scenario for WallIndentation {
-    fn info(&self) -> &'static ScenarioInfo {
-        &INFO
-    }
-    fn params(&self) -> &'static [ParamSpec] {
-        WallParams::SPECS
-    }
-    /// Mesh levels 0-3 with 8 quasi-static load steps over the default ramp
-    /// ([`SPHERE_DT`]).
-    fn sweep(&self) -> Vec<Fidelity> {
-        contact_sweep()
-    }
-    fn quick_sweep(&self) -> Vec<Fidelity> {
-        self.sweep().into_iter().take(2).collect()
-    }
-    fn instantiate_at(&self, params: &Params, fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        let p = WallParams::of(params);
-        let level = mesh_level(INFO.id, fidelity)?;
-        let r = WallReference::load(&datasets_dir())?;
-        let (depth, e) = (p.depth, p.youngs_modulus);
-        let (lo, hi) = r.depth_range();
-        let (Some(force_ref), Some(extent_ref), Some(profile)) =
-            (r.force(depth, e), r.contact_extent(depth), r.profile(depth))
-        else {
-            return Err(UsageError(format!(
-                "wall-indentation: depth {depth} m is outside the reference's [{lo}, {hi}] m"
-            )));
-        };
-        let mesh = wall_sphere_mesh(&r, level);
-        let (a, half_angle, zc) = (r.inner_radius, 0.5 * r.sector_angle, 0.5 * r.length);
-        let tol = 1e-9 * r.outer_radius;
-        let mut body = TissueBody::new(mesh.clone(), material(p.youngs_modulus, p.density, r.poisson_ratio));
-        body.fixed_nodes = mesh::nodes_where(&mesh, |x| x.y.atan2(x.x) >= half_angle - 1e-9 || x.z >= r.length - tol);
-        body.partial_fixed = rollers(&mesh, &body.fixed_nodes, |x| {
-            [false, x.y <= tol, (x.z - zc).abs() <= tol]
-        });
-        body.indenter = Some(surgbench_core::scene::SphereIndenter {
-            centre: Vec3::new(a - r.tip_radius, 0.0, zc),
-            radius: r.tip_radius,
-            travel: Vec3::new(depth, 0.0, 0.0),
-        });
-        let inner = mesh::nodes_on_cylinder(&mesh, a, tol);
-        // Probes mirrored onto the quarter, a hair inside the wall, the
-        // clamped ends pulled in by 1e-9 of their extent (as the script).
-        let rp = a * (1.0 + 1e-9);
-        let probes = profile
-            .iter()
-            .map(|&(line, coord, want)| {
-                let (x, dir) = if line == 0 {
-                    let z = (zc + (coord - zc).abs()).min(r.length * (1.0 - 1e-9));
-                    (Vec3::new(rp, 0.0, z), Vec3::x())
-                } else {
-                    let th = coord.abs().min(half_angle * (1.0 - 1e-9));
-                    let dir = Vec3::new(th.cos(), th.sin(), 0.0);
-                    (rp * dir + Vec3::new(0.0, 0.0, zc), dir)
-                };
-                let (e, w) = locate(&mesh, &x).expect("wall mesh has tets");
-                (e, w, dir, want)
-            })
-            .collect();
-        Ok(Box::new(WallSphereRun {
-            scene: static_scene(INFO.id, body, p.ramp_time, p.duration, p.settle_tol)?,
-            mesh,
-            depth,
-            force_ref,
-            extent_ref,
-            radius: r.tip_radius,
-            inner,
-            probes,
-            e_scale: e,
-            reference: r,
-        }))
-    }
+fn build(p: &WallParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
+    let level = mesh_level(WALL_INDENTATION.info.id, inputs.fidelity)?;
+    let r = WallReference::load(inputs.datasets)?;
+    let (depth, e) = (p.depth, p.youngs_modulus);
+    let (lo, hi) = r.depth_range();
+    let (Some(force_ref), Some(extent_ref), Some(profile)) =
+        (r.force(depth, e), r.contact_extent(depth), r.profile(depth))
+    else {
+        return Err(UsageError(format!(
+            "wall-indentation: depth {depth} m is outside the reference's [{lo}, {hi}] m"
+        )));
+    };
+    let mesh = wall_sphere_mesh(&r, level);
+    let (a, half_angle, zc) = (r.inner_radius, 0.5 * r.sector_angle, 0.5 * r.length);
+    let tol = 1e-9 * r.outer_radius;
+    let mut body = TissueBody::new(mesh.clone(), material(p.youngs_modulus, p.density, r.poisson_ratio));
+    body.fixed_nodes = mesh::nodes_where(&mesh, |x| x.y.atan2(x.x) >= half_angle - 1e-9 || x.z >= r.length - tol);
+    body.partial_fixed = rollers(&mesh, &body.fixed_nodes, |x| {
+        [false, x.y <= tol, (x.z - zc).abs() <= tol]
+    });
+    body.indenter = Some(surgbench_core::scene::SphereIndenter {
+        centre: Vec3::new(a - r.tip_radius, 0.0, zc),
+        radius: r.tip_radius,
+        travel: Vec3::new(depth, 0.0, 0.0),
+    });
+    let inner = mesh::nodes_on_cylinder(&mesh, a, tol);
+    // Probes mirrored onto the quarter, a hair inside the wall, the
+    // clamped ends pulled in by 1e-9 of their extent (as the script).
+    let rp = a * (1.0 + 1e-9);
+    let probes = profile
+        .iter()
+        .map(|&(line, coord, want)| {
+            let (x, dir) = if line == 0 {
+                let z = (zc + (coord - zc).abs()).min(r.length * (1.0 - 1e-9));
+                (Vec3::new(rp, 0.0, z), Vec3::x())
+            } else {
+                let th = coord.abs().min(half_angle * (1.0 - 1e-9));
+                let dir = Vec3::new(th.cos(), th.sin(), 0.0);
+                (rp * dir + Vec3::new(0.0, 0.0, zc), dir)
+            };
+            let (e, w) = locate(&mesh, &x).expect("wall mesh has tets");
+            (e, w, dir, want)
+        })
+        .collect();
+    let scene = static_scene(WALL_INDENTATION.info.id, body, p.ramp_time, p.duration, p.settle_tol)?;
+    // The work is below F depth (the force grows with the depth).
+    let (work, length) = (force_ref * depth, r.length);
+    let run = WallSphereRun {
+        mesh,
+        depth,
+        force_ref,
+        extent_ref,
+        radius: r.tip_radius,
+        inner,
+        probes,
+        e_scale: e,
+        reference: r,
+    };
+    Ok(ScenarioRun::new(scene, Curve(run), work, length))
 }

@@ -5,8 +5,8 @@ use super::wall_indentation::{WALL_DENSITY, WALL_E};
 use super::*;
 use crate::params;
 use crate::references::PunchReference;
-use crate::scenario::{ParamSpec, Params, Range, Scenario, ScenarioInfo, ScenarioRun, Scorer, UsageError};
-use surgbench_core::{Family, Fidelity, Observation, Scene, TetMesh, TissueBody, Vec3};
+use crate::scenario::{Declared, Inputs, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError};
+use surgbench_core::{Family, Observation, Scene, TetMesh, TissueBody, Vec3};
 
 /// Relative tolerance of the footprint rule `y^2 + (z - L/2)^2 <= r_p^2 (1 +
 /// tol)`: inclusive, so nodes exactly on the punch rim count on every level
@@ -61,33 +61,6 @@ pub fn wall_clamped(r: &PunchReference, mesh: &TetMesh) -> Vec<usize> {
     })
 }
 
-/// A catheter tip modelled as a bonded flat punch on a vessel-wall segment.
-///
-/// The linear companion of [`WallIndentation`] (the sphere in unilateral
-/// contact): a rigid flat-ended circular punch of the catheter's radius,
-/// bonded to the inner wall (every component of the footprint nodes is
-/// prescribed) and pushed radially outward (`+x`) by `depth`. It needs no
-/// tissue contact, so every tissue model runs it, and it is the scene of
-/// the PBD local-activation study (`comparisons/pbd-hash.toml`).
-///
-/// Geometry and material (from the reference's `meta.toml`): inner radius
-/// 4 mm and wall thickness 1 mm (carotid / femoral artery size), a 120 deg
-/// sector 8 mm long, so the punch rim is about 3 wall thicknesses from every
-/// clamped boundary; punch radius 1 mm (a 6F catheter is 2 mm across);
-/// `E = 1 MPa`, `nu = 0.45`, the order of magnitude of the small-strain
-/// modulus of the arterial wall (Holzapfel, Gasser & Ogden 2000, J.
-/// Elasticity 61; nearly incompressible), density 1060 kg/m^3.
-///
-/// Scores: the punch force at the final depth against the reference
-/// (`force_error_rel`, primary), the force along the ramp against the linear
-/// reference curve `F_ref s(t)` at every step's load factor `s(t)`
-/// (`force_curve_error_rel`: RMS error over RMS reference force,
-/// accumulated in [`ScenarioRun::observe_step`]; equals the force error for
-/// a linear quasi-static model) and the radial displacement of the inner
-/// wall along the axial line through the punch centre, outside the footprint
-/// (`surface_error_rel`: RMS error over RMS reference displacement).
-pub struct WallPunch;
-
 params! {
     /// Parameters of `wall-punch`.
     ///
@@ -116,13 +89,11 @@ params! {
 }
 
 struct PunchRun {
-    scene: Scene,
     mesh: TetMesh,
     depth: f64,
     force_ref: f64,
     /// `(containing tet, weights, reference u_r)` of each profile probe (m).
     probes: Vec<(usize, [f64; 4], f64)>,
-    length: f64,
 }
 
 impl PunchRun {
@@ -133,7 +104,7 @@ impl PunchRun {
 }
 
 impl ForceCurve for PunchRun {
-    fn metrics(&self, obs: &Observation) -> Option<Metrics> {
+    fn metrics(&self, _: &Scene, obs: &Observation) -> Option<Metrics> {
         let mut m = Metrics::new();
         let t = tissue_of(obs, &self.mesh)?;
         let f = Self::force(obs);
@@ -157,88 +128,93 @@ impl ForceCurve for PunchRun {
         common_metrics(&mut m, &self.mesh, t);
         Some(m)
     }
-    fn curve_point(&self, obs: &Observation) -> Option<(f64, f64)> {
-        let s = self.scene.control.command_at(obs.time).insertion;
+    fn curve_point(&self, scene: &Scene, obs: &Observation) -> Option<(f64, f64)> {
+        let s = scene.control.command_at(obs.time).insertion;
         // Linear reference: F(t) = F_ref s(t) at load factor s(t).
         let want = self.force_ref * s;
         Some((Self::force(obs), want))
     }
 }
 
-impl ScenarioRun for PunchRun {
-    fn scene(&self) -> &Scene {
-        &self.scene
-    }
-    fn scorer(&self) -> Box<dyn Scorer + '_> {
-        CurveScorer::boxed(self)
-    }
-    fn energy_scale(&self) -> f64 {
-        // Twice the linear work F d / 2.
-        self.force_ref * self.depth
-    }
-    fn length_scale(&self) -> f64 {
-        self.length
-    }
-}
-
-const INFO: ScenarioInfo = ScenarioInfo {
-    id: "wall-punch",
-    description: "vessel-wall sector (r 4-5 mm) indented by a 1 mm flat punch BONDED to the inner wall (the linear companion of wall-indentation's sphere): force, deformed surface",
-    family: Family::Tissue,
-    reference: "scikit-fem P2, LINEAR elasticity, bonded flat punch (datasets/reference/wall-punch)",
-    primary_error: "force_error_rel",
+/// A catheter tip modelled as a bonded flat punch on a vessel-wall segment.
+///
+/// The linear companion of [`WALL_INDENTATION`] (the sphere in unilateral
+/// contact): a rigid flat-ended circular punch of the catheter's radius,
+/// bonded to the inner wall (every component of the footprint nodes is
+/// prescribed) and pushed radially outward (`+x`) by `depth`. It needs no
+/// tissue contact, so every tissue model runs it, and it is the scene of
+/// the PBD local-activation study (`comparisons/pbd-hash.toml`).
+///
+/// Geometry and material (from the reference's `meta.toml`): inner radius
+/// 4 mm and wall thickness 1 mm (carotid / femoral artery size), a 120 deg
+/// sector 8 mm long, so the punch rim is about 3 wall thicknesses from every
+/// clamped boundary; punch radius 1 mm (a 6F catheter is 2 mm across);
+/// `E = 1 MPa`, `nu = 0.45`, the order of magnitude of the small-strain
+/// modulus of the arterial wall (Holzapfel, Gasser & Ogden 2000, J.
+/// Elasticity 61; nearly incompressible), density 1060 kg/m^3.
+///
+/// Scores: the punch force at the final depth against the reference
+/// (`force_error_rel`, primary), the force along the ramp against the linear
+/// reference curve `F_ref s(t)` at every step's load factor `s(t)`
+/// (`force_curve_error_rel`: RMS error over RMS reference force,
+/// accumulated in [`Scorer::observe_step`](crate::Scorer::observe_step); equals the force error for
+/// a linear quasi-static model) and the radial displacement of the inner
+/// wall along the axial line through the punch centre, outside the footprint
+/// (`surface_error_rel`: RMS error over RMS reference displacement).
+pub const WALL_PUNCH: Declared<PunchParams> = Declared {
+    info: ScenarioInfo {
+        id: "wall-punch",
+        description: "vessel-wall sector (r 4-5 mm) indented by a 1 mm flat punch BONDED to the inner wall (the linear companion of wall-indentation's sphere): force, deformed surface",
+        family: Family::Tissue,
+        reference: "scikit-fem P2, LINEAR elasticity, bonded flat punch (datasets/reference/wall-punch)",
+        primary_error: "force_error_rel",
+        params: PunchParams::SPECS,
+        sweep: Sweep::MeshLevels(None),
+        quick: 3,
+    },
+    datasets: None,
+    build,
 };
 
-impl Scenario for WallPunch {
-    fn info(&self) -> &'static ScenarioInfo {
-        &INFO
+fn build(p: &PunchParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
+    let level = mesh_level(WALL_PUNCH.info.id, inputs.fidelity)?;
+    let r = PunchReference::load(inputs.datasets)?;
+    let (depth, e) = (p.depth, p.youngs_modulus);
+    let force_ref = r.force(depth, e).filter(|f| *f > 0.0).ok_or_else(|| {
+        UsageError(format!(
+            "wall-punch: depth {depth} m is outside the reference's (0, {}] m",
+            r.max_depth()
+        ))
+    })?;
+    let mesh = wall_mesh(&r, level);
+    let foot = wall_footprint(&r, &mesh);
+    if foot.is_empty() {
+        return Err(UsageError(format!(
+            "wall-punch: no node of mesh level {level} lies in the punch footprint"
+        )));
     }
-    fn params(&self) -> &'static [ParamSpec] {
-        PunchParams::SPECS
-    }
-    fn sweep(&self) -> Vec<Fidelity> {
-        level_sweep()
-    }
-    fn instantiate_at(&self, params: &Params, fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        let p = PunchParams::of(params);
-        let level = mesh_level(INFO.id, fidelity)?;
-        let r = PunchReference::load(&datasets_dir())?;
-        let (depth, e) = (p.depth, p.youngs_modulus);
-        let force_ref = r.force(depth, e).filter(|f| *f > 0.0).ok_or_else(|| {
-            UsageError(format!(
-                "wall-punch: depth {depth} m is outside the reference's (0, {}] m",
-                r.max_depth()
-            ))
-        })?;
-        let mesh = wall_mesh(&r, level);
-        let foot = wall_footprint(&r, &mesh);
-        if foot.is_empty() {
-            return Err(UsageError(format!(
-                "wall-punch: no node of mesh level {level} lies in the punch footprint"
-            )));
-        }
-        let mut body = TissueBody::new(mesh.clone(), material(p.youngs_modulus, p.density, r.poisson_ratio));
-        body.fixed_nodes = wall_clamped(&r, &mesh);
-        body.driven_nodes = foot.into_iter().map(|i| (i, Vec3::new(depth, 0.0, 0.0))).collect();
-        // Profile probes strictly between the clamped ends and outside the
-        // footprint: inside it every model is driven exactly.
-        let zc = 0.5 * r.length;
-        let probes = r
-            .profile
-            .iter()
-            .filter(|(z, _)| *z > 0.0 && *z < r.length && (z - zc).abs() > r.punch_radius * (1.0 + FOOTPRINT_TOL))
-            .map(|&(z, u)| {
-                let (e, w) = locate(&mesh, &Vec3::new(r.inner_radius, 0.0, z)).expect("wall mesh has tets");
-                (e, w, u * depth)
-            })
-            .collect();
-        Ok(Box::new(PunchRun {
-            scene: static_scene(INFO.id, body, p.ramp_time, p.duration, p.settle_tol)?,
-            mesh,
-            depth,
-            force_ref,
-            probes,
-            length: r.length,
-        }))
-    }
+    let mut body = TissueBody::new(mesh.clone(), material(p.youngs_modulus, p.density, r.poisson_ratio));
+    body.fixed_nodes = wall_clamped(&r, &mesh);
+    body.driven_nodes = foot.into_iter().map(|i| (i, Vec3::new(depth, 0.0, 0.0))).collect();
+    // Profile probes strictly between the clamped ends and outside the
+    // footprint: inside it every model is driven exactly.
+    let zc = 0.5 * r.length;
+    let probes = r
+        .profile
+        .iter()
+        .filter(|(z, _)| *z > 0.0 && *z < r.length && (z - zc).abs() > r.punch_radius * (1.0 + FOOTPRINT_TOL))
+        .map(|&(z, u)| {
+            let (e, w) = locate(&mesh, &Vec3::new(r.inner_radius, 0.0, z)).expect("wall mesh has tets");
+            (e, w, u * depth)
+        })
+        .collect();
+    let scene = static_scene(WALL_PUNCH.info.id, body, p.ramp_time, p.duration, p.settle_tol)?;
+    let run = PunchRun {
+        mesh,
+        depth,
+        force_ref,
+        probes,
+    };
+    // Twice the linear work F d / 2.
+    Ok(ScenarioRun::new(scene, Curve(run), force_ref * depth, r.length))
 }

@@ -5,23 +5,12 @@
 use super::*;
 use crate::params;
 use crate::references::{TipTrajectory, cached_reference};
-use crate::scenario::{ParamSpec, Params, Range, Scenario, ScenarioInfo, ScenarioRun, Scorer, UsageError, sweep_of};
+use crate::scenario::{
+    Declared, Inputs, Metrics, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
+};
 use std::sync::Arc;
 use surgbench_core::vessel::{self, Vessel};
-use surgbench_core::{Family, Fidelity, Scene};
-
-/// Push a guidewire up the descending aorta, over the arch and down the
-/// ascending aorta at constant speed with intermittent quarter turns.
-pub struct ArchInsertion {
-    /// Datasets folder holding `reference/arch-insertion/tip_trajectory.csv`
-    /// (`None`: [`datasets_dir`](crate::datasets::datasets_dir)).
-    pub datasets: Option<&'static str>,
-}
-
-impl ArchInsertion {
-    /// The registered instance (reference from [`datasets_dir`](crate::datasets::datasets_dir)).
-    pub const DEFAULT: Self = Self { datasets: None };
-}
+use surgbench_core::{Family, Scene};
 
 /// Default J length (m) of the arch wire: half a turn of the 3 mm J common
 /// on 0.035-inch access guidewires (`j_curvature = 333 1/m`); the default
@@ -89,12 +78,10 @@ params! {
 }
 
 struct ArchRun {
-    scene: Scene,
     vessel: Arc<Vessel>,
     wire_radius: f64,
     target_s: f64,
     reference: Option<TipTrajectory>,
-    energy: f64,
 }
 
 /// Insertion ramp with alternating rotations every `interval` seconds.
@@ -117,11 +104,10 @@ fn push_with_rotations(speed: f64, duration: f64, step: f64, interval: f64, rot_
     timeline(&keys)
 }
 
-/// One arch run's sums: the common ones, when the tip first passed the
-/// target plane, and the tip error against the cached trajectory.
-struct ArchScorer<'a> {
-    run: &'a ArchRun,
-    common: Common,
+/// One arch run's own sums: when the tip first passed the target plane,
+/// and the tip error against the cached trajectory.
+#[derive(Default)]
+struct ArchSums {
     reached_at: Option<f64>,
     ref_err2: f64,
     ref_err_max: f64,
@@ -141,122 +127,93 @@ impl ArchRun {
     }
 }
 
-impl Scorer for ArchScorer<'_> {
-    fn observe_step(&mut self, obs: &Observation) {
-        let Some(tip) = tip(obs) else { return };
-        let run = self.run;
-        self.common.add(run.vessel.as_ref(), obs, run.wire_radius);
-        if run.progress(&tip).1 && self.reached_at.is_none() {
-            self.reached_at = Some(obs.time);
+impl Trajectory for ArchRun {
+    type Sums = ArchSums;
+    fn wire_radius(&self) -> f64 {
+        self.wire_radius
+    }
+    fn add(&self, sums: &mut ArchSums, obs: &Observation, tip: &Vec3) {
+        if self.progress(tip).1 && sums.reached_at.is_none() {
+            sums.reached_at = Some(obs.time);
         }
-        if let Some(e) = run.ref_err(&tip, obs.time) {
-            self.ref_err2 += e * e;
-            self.ref_err_max = self.ref_err_max.max(e);
+        if let Some(e) = self.ref_err(tip, obs.time) {
+            sums.ref_err2 += e * e;
+            sums.ref_err_max = sums.ref_err_max.max(e);
         }
     }
-    fn score(&self, obs: &Observation) -> Metrics {
-        let Some(tip) = tip(obs) else { return Metrics::new() };
-        let mut m = self.common.metrics(obs);
-        m.insert("tip_progress_m".into(), self.run.progress(&tip).0);
-        m.insert("reached".into(), self.reached_at.is_some() as u8 as f64);
-        if let Some(r) = self.reached_at {
+    fn metrics(&self, sums: &ArchSums, common: &Common, obs: &Observation, tip: &Vec3, m: &mut Metrics) {
+        m.insert("tip_progress_m".into(), self.progress(tip).0);
+        m.insert("reached".into(), sums.reached_at.is_some() as u8 as f64);
+        if let Some(r) = sums.reached_at {
             m.insert("time_to_reach_s".into(), r);
         }
-        m.insert("reference_available".into(), self.run.reference.is_some() as u8 as f64);
-        if let Some(e) = self.run.ref_err(&tip, obs.time) {
+        m.insert("reference_available".into(), self.reference.is_some() as u8 as f64);
+        if let Some(e) = self.ref_err(tip, obs.time) {
             m.insert("tip_error_m".into(), e);
             m.insert(
                 "tip_error_rms_m".into(),
-                (self.ref_err2 / self.common.samples.max(1) as f64).sqrt(),
+                (sums.ref_err2 / common.samples.max(1) as f64).sqrt(),
             );
-            m.insert("tip_error_max_m".into(), self.ref_err_max);
+            m.insert("tip_error_max_m".into(), sums.ref_err_max);
         }
-        m
     }
 }
 
-impl ScenarioRun for ArchRun {
-    fn scene(&self) -> &Scene {
-        &self.scene
-    }
-    fn scorer(&self) -> Box<dyn Scorer + '_> {
-        Box::new(ArchScorer {
-            run: self,
-            common: Common::default(),
-            reached_at: None,
-            ref_err2: 0.0,
-            ref_err_max: 0.0,
-        })
-    }
-    fn energy_scale(&self) -> f64 {
-        self.energy
-    }
-    fn length_scale(&self) -> f64 {
-        0.25
-    }
-    fn penetration_limit(&self) -> f64 {
-        0.5 * self.wire_radius
-    }
-}
-
-const INFO: ScenarioInfo = ScenarioInfo {
-    id: "arch-insertion",
-    description: "guidewire pushed over an aortic arch (25 mm lumen, 35 mm arch radius) with intermittent rotation",
-    family: Family::Rod,
-    reference: "converged DER tip trajectory cached in datasets/reference/arch-insertion/tip_trajectory.csv (default parameters only); without it only reach, time-to-reach, penetration and hand force are scored",
-    primary_error: "tip_error_m",
+/// Push a guidewire up the descending aorta, over the arch and down the
+/// ascending aorta at constant speed with intermittent quarter turns.
+pub const ARCH_INSERTION: Declared<ArchParams> = Declared {
+    info: ScenarioInfo {
+        id: "arch-insertion",
+        description: "guidewire pushed over an aortic arch (25 mm lumen, 35 mm arch radius) with intermittent rotation",
+        family: Family::Rod,
+        reference: "converged DER tip trajectory cached in datasets/reference/arch-insertion/tip_trajectory.csv (default parameters only); without it only reach, time-to-reach, penetration and hand force are scored",
+        primary_error: "tip_error_m",
+        params: ArchParams::SPECS,
+        sweep: Sweep::Knob("segments", &[25.0, 50.0, 100.0, 200.0]),
+        quick: 3,
+    },
+    datasets: None,
+    build,
 };
 
-impl Scenario for ArchInsertion {
-    fn info(&self) -> &'static ScenarioInfo {
-        &INFO
+fn build(p: &ArchParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
+    let wire = wire!(p);
+    check_lumen(wire.radius, vessel::AORTA_RADIUS, "aortic")?;
+    let l0 = p.initial_length;
+    if l0 + ENTRY_S > vessel::ARCH_DESCENDING {
+        return Err(UsageError(format!(
+            "initial_length {l0} m does not fit the {} m descending segment after the {ENTRY_S} m entry",
+            vessel::ARCH_DESCENDING
+        )));
     }
-    fn params(&self) -> &'static [ParamSpec] {
-        ArchParams::SPECS
-    }
-    fn sweep(&self) -> Vec<Fidelity> {
-        sweep_of("segments", &[25.0, 50.0, 100.0, 200.0])
-    }
-    fn instantiate_at(&self, params: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        let p = ArchParams::of(params);
-        let wire = wire!(p);
-        check_lumen(wire.radius, vessel::AORTA_RADIUS, "aortic")?;
-        let l0 = p.initial_length;
-        if l0 + ENTRY_S > vessel::ARCH_DESCENDING {
-            return Err(UsageError(format!(
-                "initial_length {l0} m does not fit the {} m descending segment after the {ENTRY_S} m entry",
-                vessel::ARCH_DESCENDING
-            )));
-        }
-        let feed = p.insertion_speed * p.duration;
-        clamp_stays_in_straight(ENTRY_S + feed, vessel::ARCH_DESCENDING, "descending aorta")?;
-        let arch = Arc::new(vessel::aortic_arch());
-        let mut scene = Scene::empty(INFO.id);
-        scene.duration = p.duration;
-        scene.gravity = Vec3::new(0.0, 0.0, -p.gravity);
-        let (jl, kappa) = (p.j_length, p.j_curvature);
-        scene
-            .bodies
-            .push(wire.rod_with_j(l0, arch.trunk.frame_at(ENTRY_S), jl, kappa)?.into());
-        scene.environment.vessel = Some(arch.clone());
-        scene.environment.contact = contact(p.friction_static, p.friction_dynamic, wire.radius)?;
-        scene.control = push_with_rotations(
-            p.insertion_speed,
-            scene.duration,
-            p.rotation_step,
-            p.rotation_interval,
-            p.rotation_time,
-        );
-        scene.validate().map_err(UsageError)?;
-        let total = l0 + p.insertion_speed * scene.duration;
-        Ok(Box::new(ArchRun {
-            scene,
-            target_s: vessel::ARCH_DESCENDING + PI * vessel::ARCH_RADIUS + p.target_depth,
-            wire_radius: wire.radius,
-            reference: cached_reference(INFO.id, params, self.datasets)?,
-            // Bending the whole wire to the arch radius.
-            energy: wire.body_ei() * total / (vessel::ARCH_RADIUS * vessel::ARCH_RADIUS),
-            vessel: arch,
-        }))
-    }
+    let feed = p.insertion_speed * p.duration;
+    clamp_stays_in_straight(ENTRY_S + feed, vessel::ARCH_DESCENDING, "descending aorta")?;
+    let arch = Arc::new(vessel::aortic_arch());
+    let mut scene = Scene::empty(ARCH_INSERTION.info.id);
+    scene.duration = p.duration;
+    scene.gravity = Vec3::new(0.0, 0.0, -p.gravity);
+    let (jl, kappa) = (p.j_length, p.j_curvature);
+    scene
+        .bodies
+        .push(wire.rod_with_j(l0, arch.trunk.frame_at(ENTRY_S), jl, kappa)?.into());
+    scene.environment.vessel = Some(arch.clone());
+    scene.environment.contact = contact(p.friction_static, p.friction_dynamic, wire.radius)?;
+    scene.control = push_with_rotations(
+        p.insertion_speed,
+        scene.duration,
+        p.rotation_step,
+        p.rotation_interval,
+        p.rotation_time,
+    );
+    scene.validate().map_err(UsageError)?;
+    let total = l0 + p.insertion_speed * scene.duration;
+    // Bending the whole wire to the arch radius.
+    let energy = wire.body_ei() * total / (vessel::ARCH_RADIUS * vessel::ARCH_RADIUS);
+    let run = ArchRun {
+        target_s: vessel::ARCH_DESCENDING + PI * vessel::ARCH_RADIUS + p.target_depth,
+        wire_radius: wire.radius,
+        reference: cached_reference(ARCH_INSERTION.info.id, inputs)?,
+        vessel: arch,
+    };
+    Ok(vessel_run(scene, run, energy, 0.25))
 }

@@ -3,15 +3,13 @@
 
 use super::*;
 use crate::params;
-use crate::scenario::{ParamSpec, Params, Range, Scenario, ScenarioInfo, ScenarioRun, Scorer, UsageError, sweep_of};
+use crate::scenario::{
+    Declared, Inputs, Metrics, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
+};
 use std::sync::Arc;
 use surgbench_core::haptic::Session;
 use surgbench_core::vessel::{self, Vessel};
-use surgbench_core::{Family, Fidelity, Scene};
-
-/// Select a branch of a Y bifurcation by rotating a pre-shaped J tip, as
-/// replayed from a recorded session.
-pub struct BranchSelection;
+use surgbench_core::{Family, Scene};
 
 const SESSION_45: &str = include_str!("../../../../datasets/vessels/branch-selection-45.csv");
 const SESSION_70: &str = include_str!("../../../../datasets/vessels/branch-selection-70.csv");
@@ -61,21 +59,11 @@ params! {
 }
 
 struct BranchRun {
-    scene: Scene,
     vessel: Arc<Vessel>,
     target: usize,
     depth: f64,
     wire_radius: f64,
     rotations: usize,
-    energy: f64,
-}
-
-/// One branch run's sums: the common ones and when the tip first stood in
-/// the target branch.
-struct BranchScorer<'a> {
-    run: &'a BranchRun,
-    common: Common,
-    reached_at: Option<f64>,
 }
 
 impl BranchRun {
@@ -88,119 +76,94 @@ impl BranchRun {
     }
 }
 
-impl Scorer for BranchScorer<'_> {
-    fn observe_step(&mut self, obs: &Observation) {
-        let Some(tip) = tip(obs) else { return };
-        self.common.add(self.run.vessel.as_ref(), obs, self.run.wire_radius);
-        if self.run.inside(&tip).1 && self.reached_at.is_none() {
-            self.reached_at = Some(obs.time);
+impl Trajectory for BranchRun {
+    /// When the tip first stood in the target branch (s).
+    type Sums = Option<f64>;
+    fn wire_radius(&self) -> f64 {
+        self.wire_radius
+    }
+    fn add(&self, reached_at: &mut Option<f64>, obs: &Observation, tip: &Vec3) {
+        if self.inside(tip).1 && reached_at.is_none() {
+            *reached_at = Some(obs.time);
         }
     }
-    fn score(&self, obs: &Observation) -> Metrics {
-        let Some(tip) = tip(obs) else { return Metrics::new() };
-        let (along, inside) = self.run.inside(&tip);
-        let mut m = self.common.metrics(obs);
+    fn metrics(&self, reached_at: &Option<f64>, _: &Common, _: &Observation, tip: &Vec3, m: &mut Metrics) {
+        let (along, inside) = self.inside(tip);
         m.insert("target_missed".into(), if inside { 0.0 } else { 1.0 });
         m.insert("success".into(), inside as u8 as f64);
-        if let Some(r) = self.reached_at {
-            m.insert("time_to_target_s".into(), r);
+        if let Some(r) = reached_at {
+            m.insert("time_to_target_s".into(), *r);
         }
-        m.insert("rotation_commands".into(), self.run.rotations as f64);
+        m.insert("rotation_commands".into(), self.rotations as f64);
         m.insert("tip_along_target_m".into(), along);
-        m
     }
 }
 
-impl ScenarioRun for BranchRun {
-    fn scene(&self) -> &Scene {
-        &self.scene
-    }
-    fn scorer(&self) -> Box<dyn Scorer + '_> {
-        Box::new(BranchScorer {
-            run: self,
-            common: Common::default(),
-            reached_at: None,
-        })
-    }
-    fn energy_scale(&self) -> f64 {
-        self.energy
-    }
-    fn length_scale(&self) -> f64 {
-        0.1
-    }
-    fn penetration_limit(&self) -> f64 {
-        0.5 * self.wire_radius
-    }
-}
-
-const INFO: ScenarioInfo = ScenarioInfo {
-    id: "branch-selection",
-    description: "J-tip guidewire steered into the 45 or 70 degree branch of a Y bifurcation by a recorded session",
-    family: Family::Rod,
-    reference: "success: tip inside the target branch past target_depth; recorded sessions datasets/vessels/branch-selection-{45,70}.csv",
-    primary_error: "target_missed",
+/// Select a branch of a Y bifurcation by rotating a pre-shaped J tip, as
+/// replayed from a recorded session.
+pub const BRANCH_SELECTION: Declared<BranchParams> = Declared {
+    info: ScenarioInfo {
+        id: "branch-selection",
+        description: "J-tip guidewire steered into the 45 or 70 degree branch of a Y bifurcation by a recorded session",
+        family: Family::Rod,
+        reference: "success: tip inside the target branch past target_depth; recorded sessions datasets/vessels/branch-selection-{45,70}.csv",
+        primary_error: "target_missed",
+        params: BranchParams::SPECS,
+        sweep: Sweep::Knob("segments", &[20.0, 40.0, 80.0]),
+        quick: 3,
+    },
+    datasets: None,
+    build,
 };
 
-impl Scenario for BranchSelection {
-    fn info(&self) -> &'static ScenarioInfo {
-        &INFO
+fn build(p: &BranchParams, _: &Inputs) -> Result<ScenarioRun, UsageError> {
+    let wire = wire!(p);
+    check_lumen(wire.radius, vessel::Y_BRANCH_RADIUS, "branch")?;
+    let target = p.target;
+    if target.fract() != 0.0 {
+        return Err(UsageError(format!("target must be 0 or 1, got {target}")));
     }
-    fn params(&self) -> &'static [ParamSpec] {
-        BranchParams::SPECS
+    let target = target as usize;
+    let (name, text) = if target == 0 {
+        ("datasets/vessels/branch-selection-45.csv", SESSION_45)
+    } else {
+        ("datasets/vessels/branch-selection-70.csv", SESSION_70)
+    };
+    let session = Session::parse(name, text).map_err(|e| UsageError(e.to_string()))?;
+    let (l0, jl, kappa) = (p.initial_length, p.j_length, p.j_curvature);
+    if l0 + ENTRY_S > vessel::Y_TRUNK {
+        return Err(UsageError(format!(
+            "initial_length {l0} m does not fit the {} m trunk",
+            vessel::Y_TRUNK
+        )));
     }
-    fn sweep(&self) -> Vec<Fidelity> {
-        sweep_of("segments", &[20.0, 40.0, 80.0])
+    // Lateral offset of the J's end from the axis: (1 - cos(kappa j)) / kappa.
+    let offset = (1.0 - (kappa * jl).min(PI).cos()) / kappa;
+    if offset + wire.radius > vessel::Y_TRUNK_RADIUS {
+        return Err(UsageError(format!(
+            "the J (curvature {kappa} 1/m over {jl} m) sticks out {offset:.2e} m from the axis: the wire would start in the wall"
+        )));
     }
-    fn instantiate_at(&self, params: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        let p = BranchParams::of(params);
-        let wire = wire!(p);
-        check_lumen(wire.radius, vessel::Y_BRANCH_RADIUS, "branch")?;
-        let target = p.target;
-        if target.fract() != 0.0 {
-            return Err(UsageError(format!("target must be 0 or 1, got {target}")));
-        }
-        let target = target as usize;
-        let (name, text) = if target == 0 {
-            ("datasets/vessels/branch-selection-45.csv", SESSION_45)
-        } else {
-            ("datasets/vessels/branch-selection-70.csv", SESSION_70)
-        };
-        let session = Session::parse(name, text).map_err(|e| UsageError(e.to_string()))?;
-        let (l0, jl, kappa) = (p.initial_length, p.j_length, p.j_curvature);
-        if l0 + ENTRY_S > vessel::Y_TRUNK {
-            return Err(UsageError(format!(
-                "initial_length {l0} m does not fit the {} m trunk",
-                vessel::Y_TRUNK
-            )));
-        }
-        // Lateral offset of the J's end from the axis: (1 - cos(kappa j)) / kappa.
-        let offset = (1.0 - (kappa * jl).min(PI).cos()) / kappa;
-        if offset + wire.radius > vessel::Y_TRUNK_RADIUS {
-            return Err(UsageError(format!(
-                "the J (curvature {kappa} 1/m over {jl} m) sticks out {offset:.2e} m from the axis: the wire would start in the wall"
-            )));
-        }
-        let y = Arc::new(vessel::y_bifurcation());
-        // Clamp on the trunk axis, its local y (where the J bends) turned to +z.
-        let base = y.trunk.frame_at(ENTRY_S) * Iso3::rotation(Vec3::x() * (PI / 2.0));
-        let rod = wire.rod_with_j(l0, base, jl, kappa)?;
-        let mut scene = Scene::empty(INFO.id);
-        scene.duration = p.duration;
-        scene.bodies.push(rod.into());
-        scene.environment.vessel = Some(y.clone());
-        scene.environment.contact = contact(p.friction_static, p.friction_dynamic, wire.radius)?;
-        scene.control = session.timeline.clone();
-        scene.validate().map_err(UsageError)?;
-        Ok(Box::new(BranchRun {
-            scene,
-            vessel: y,
-            target,
-            depth: p.target_depth,
-            wire_radius: wire.radius,
-            rotations: session.rotation_commands(),
-            // The whole wire bent at a 10 mm radius into a branch.
-            energy: wire.body_ei() * (l0 + session.timeline.keys.iter().map(|k| k.insertion).fold(0.0, f64::max))
-                / 1e-4,
-        }))
-    }
+    let y = Arc::new(vessel::y_bifurcation());
+    // Clamp on the trunk axis, its local y (where the J bends) turned to +z.
+    let base = y.trunk.frame_at(ENTRY_S) * Iso3::rotation(Vec3::x() * (PI / 2.0));
+    let rod = wire.rod_with_j(l0, base, jl, kappa)?;
+    let mut scene = Scene::empty(BRANCH_SELECTION.info.id);
+    scene.duration = p.duration;
+    scene.bodies.push(rod.into());
+    scene.environment.vessel = Some(y.clone());
+    scene.environment.contact = contact(p.friction_static, p.friction_dynamic, wire.radius)?;
+    scene.control = session.timeline.clone();
+    scene.validate().map_err(UsageError)?;
+    // The whole wire bent at a 10 mm radius into a branch.
+    let fed = session.timeline.keys.iter().map(|k| k.insertion).fold(0.0, f64::max);
+    let energy = wire.body_ei() * (l0 + fed) / 1e-4;
+    let run = BranchRun {
+        vessel: y,
+        target,
+        depth: p.target_depth,
+        wire_radius: wire.radius,
+        rotations: session.rotation_commands(),
+    };
+    Ok(vessel_run(scene, run, energy, 0.1))
 }

@@ -4,15 +4,13 @@
 use super::*;
 use crate::params;
 use crate::references::capstan_ratio;
-use crate::scenario::{ParamSpec, Params, Range, Scenario, ScenarioInfo, ScenarioRun, Scorer, UsageError, sweep_of};
+use crate::scenario::{
+    Declared, Inputs, Metrics, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
+};
 use std::sync::Arc;
 use surgbench_core::LoadRamp;
-use surgbench_core::sdf::{CenterlineBuilder, SweptTube};
-use surgbench_core::{Family, Fidelity, Scene};
-
-/// A flexible wire pulled back through a curved tube against a dead tip
-/// force: the capstan (Euler-Eytelwein) law `T_out / T_in = exp(mu theta)`.
-pub struct Capstan;
+use surgbench_core::sdf::CenterlineBuilder;
+use surgbench_core::{Family, Scene};
 
 params! {
     /// Parameters of `capstan`.
@@ -79,24 +77,12 @@ const CAPSTAN_RAMP: f64 = 0.1;
 const CAPSTAN_DWELL: f64 = 0.1;
 
 struct CapstanRun {
-    scene: Scene,
-    tube: SweptTube,
     wire_radius: f64,
     t_in: f64,
     ratio_ref: f64,
     window: (f64, f64),
     axis: Vec3,
     bending: f64,
-    energy: f64,
-}
-
-/// One capstan run's sums: the common ones and the hand tension over the
-/// pulling window.
-struct CapstanScorer<'a> {
-    run: &'a CapstanRun,
-    common: Common,
-    window_sum: f64,
-    window_n: usize,
 }
 
 impl CapstanRun {
@@ -106,153 +92,128 @@ impl CapstanRun {
     }
 }
 
-impl Scorer for CapstanScorer<'_> {
-    fn observe_step(&mut self, obs: &Observation) {
-        let run = self.run;
-        self.common.add(&run.tube, obs, run.wire_radius);
-        if obs.time >= run.window.0 && obs.time <= run.window.1 {
-            self.window_sum += run.tension(obs);
-            self.window_n += 1;
+/// The hand tension summed over the pulling window (N) and its samples.
+#[derive(Default)]
+struct Window {
+    sum: f64,
+    n: usize,
+}
+
+impl Trajectory for CapstanRun {
+    type Sums = Window;
+    fn wire_radius(&self) -> f64 {
+        self.wire_radius
+    }
+    fn add(&self, w: &mut Window, obs: &Observation, _: &Vec3) {
+        if obs.time >= self.window.0 && obs.time <= self.window.1 {
+            w.sum += self.tension(obs);
+            w.n += 1;
         }
     }
-    fn score(&self, obs: &Observation) -> Metrics {
-        let run = self.run;
-        let mut m = self.common.metrics(obs);
-        let now = run.tension(obs) / run.t_in;
-        let ratio = if self.window_n > 0 {
-            self.window_sum / self.window_n as f64 / run.t_in
-        } else {
-            now
-        };
+    fn metrics(&self, w: &Window, _: &Common, obs: &Observation, _: &Vec3, m: &mut Metrics) {
+        let now = self.tension(obs) / self.t_in;
+        let ratio = if w.n > 0 { w.sum / w.n as f64 / self.t_in } else { now };
         m.insert("tension_ratio".into(), ratio);
-        m.insert("tension_ratio_ref".into(), run.ratio_ref);
+        m.insert("tension_ratio_ref".into(), self.ratio_ref);
         m.insert(
             "tension_ratio_error_rel".into(),
-            (ratio - run.ratio_ref).abs() / run.ratio_ref,
+            (ratio - self.ratio_ref).abs() / self.ratio_ref,
         );
         m.insert(
             "tension_ratio_now_error_rel".into(),
-            (now - run.ratio_ref).abs() / run.ratio_ref,
+            (now - self.ratio_ref).abs() / self.ratio_ref,
         );
-        m.insert("window_samples".into(), self.window_n as f64);
-        m.insert("bending_over_tension".into(), run.bending);
-        m
+        m.insert("window_samples".into(), w.n as f64);
+        m.insert("bending_over_tension".into(), self.bending);
     }
 }
 
-impl ScenarioRun for CapstanRun {
-    fn scene(&self) -> &Scene {
-        &self.scene
-    }
-    fn scorer(&self) -> Box<dyn Scorer + '_> {
-        Box::new(CapstanScorer {
-            run: self,
-            common: Common::default(),
-            window_sum: 0.0,
-            window_n: 0,
-        })
-    }
-    fn energy_scale(&self) -> f64 {
-        self.energy
-    }
-    fn length_scale(&self) -> f64 {
-        0.1
-    }
-    fn penetration_limit(&self) -> f64 {
-        0.5 * self.wire_radius
-    }
-}
-
-const INFO: ScenarioInfo = ScenarioInfo {
-    id: "capstan",
-    description: "soft wire threaded through a bend of wrap angle theta, loaded by a tip tension (ramped once threaded) and pulled back",
-    family: Family::Rod,
-    reference: "capstan law T_out / T_in = exp(mu theta) (valid when EI / (R^2 T_in) << 1, reported as bending_over_tension)",
-    primary_error: "tension_ratio_error_rel",
+/// A flexible wire pulled back through a curved tube against a dead tip
+/// force: the capstan (Euler-Eytelwein) law `T_out / T_in = exp(mu theta)`.
+pub const CAPSTAN: Declared<CapstanParams> = Declared {
+    info: ScenarioInfo {
+        id: "capstan",
+        description: "soft wire threaded through a bend of wrap angle theta, loaded by a tip tension (ramped once threaded) and pulled back",
+        family: Family::Rod,
+        reference: "capstan law T_out / T_in = exp(mu theta) (valid when EI / (R^2 T_in) << 1, reported as bending_over_tension)",
+        primary_error: "tension_ratio_error_rel",
+        params: CapstanParams::SPECS,
+        sweep: Sweep::Knob("segments", &[20.0, 40.0, 80.0]),
+        quick: 3,
+    },
+    datasets: None,
+    build,
 };
 
-impl Scenario for Capstan {
-    fn info(&self) -> &'static ScenarioInfo {
-        &INFO
+fn build(p: &CapstanParams, _: &Inputs) -> Result<ScenarioRun, UsageError> {
+    let r = p.wire_radius;
+    let lumen = p.tube_radius;
+    check_lumen(r, lumen, "tube")?;
+    let (mu, theta, rc) = (p.friction, p.wrap_angle, p.bend_radius);
+    if !(rc > 2.0 * lumen) {
+        return Err(UsageError(format!(
+            "bend_radius {rc} m must exceed twice the tube_radius {lumen} m"
+        )));
     }
-    fn params(&self) -> &'static [ParamSpec] {
-        CapstanParams::SPECS
+    // The wire starts straight in the entry and is fed until its tip is
+    // CAPSTAN_THREAD past the bend; the clamp moves with the feed, so the
+    // straight must hold the clamp's whole travel (rc theta + thread +
+    // the tip's start short of the bend) plus slack, and the wire starts
+    // that long: the clamp ends CAPSTAN_SLACK / 2 short of the bend.
+    let entry = rc * theta + CAPSTAN_THREAD + CAPSTAN_SLACK;
+    let l0 = entry - CAPSTAN_SLACK / 2.0;
+    // The tube starts ENTRY_S behind the clamp.
+    let tube = CenterlineBuilder::new(Vec3::new(-ENTRY_S, 0.0, 0.0), Vec3::x())
+        .line(ENTRY_S + entry)
+        .arc(rc, theta, Vec3::y())
+        .line(CAPSTAN_EXIT)
+        .build_constant(lumen)
+        .map_err(|e| UsageError(e.to_string()))?;
+    let exit_dir = Vec3::new(theta.cos(), theta.sin(), 0.0);
+    let t_in = p.tip_force;
+    let e = p.youngs_modulus;
+    let mut rod = RodBody::uniform(l0, r, e, p.poisson_ratio, p.density);
+    rod.tip_force = exit_dir * t_in;
+    // Thread the tip into the exit segment, dwell, pull back.
+    let ins = entry + rc * theta + CAPSTAN_THREAD - l0;
+    clamp_stays_in_straight(ins, entry, "entry straight")?;
+    let (vi, vp, lp) = (p.insert_speed, p.pull_speed, p.pull_length);
+    if lp >= CAPSTAN_THREAD - 1e-3 {
+        return Err(UsageError(format!(
+            "pull_length {lp} m would pull the tip back into the bend (max {} m)",
+            CAPSTAN_THREAD - 1e-3
+        )));
     }
-    fn sweep(&self) -> Vec<Fidelity> {
-        sweep_of("segments", &[20.0, 40.0, 80.0])
-    }
-    fn instantiate_at(&self, params: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        let p = CapstanParams::of(params);
-        let r = p.wire_radius;
-        let lumen = p.tube_radius;
-        check_lumen(r, lumen, "tube")?;
-        let (mu, theta, rc) = (p.friction, p.wrap_angle, p.bend_radius);
-        if !(rc > 2.0 * lumen) {
-            return Err(UsageError(format!(
-                "bend_radius {rc} m must exceed twice the tube_radius {lumen} m"
-            )));
-        }
-        // The wire starts straight in the entry and is fed until its tip is
-        // CAPSTAN_THREAD past the bend; the clamp moves with the feed, so the
-        // straight must hold the clamp's whole travel (rc theta + thread +
-        // the tip's start short of the bend) plus slack, and the wire starts
-        // that long: the clamp ends CAPSTAN_SLACK / 2 short of the bend.
-        let entry = rc * theta + CAPSTAN_THREAD + CAPSTAN_SLACK;
-        let l0 = entry - CAPSTAN_SLACK / 2.0;
-        // The tube starts ENTRY_S behind the clamp.
-        let tube = CenterlineBuilder::new(Vec3::new(-ENTRY_S, 0.0, 0.0), Vec3::x())
-            .line(ENTRY_S + entry)
-            .arc(rc, theta, Vec3::y())
-            .line(CAPSTAN_EXIT)
-            .build_constant(lumen)
-            .map_err(|e| UsageError(e.to_string()))?;
-        let exit_dir = Vec3::new(theta.cos(), theta.sin(), 0.0);
-        let t_in = p.tip_force;
-        let e = p.youngs_modulus;
-        let mut rod = RodBody::uniform(l0, r, e, p.poisson_ratio, p.density);
-        rod.tip_force = exit_dir * t_in;
-        // Thread the tip into the exit segment, dwell, pull back.
-        let ins = entry + rc * theta + CAPSTAN_THREAD - l0;
-        clamp_stays_in_straight(ins, entry, "entry straight")?;
-        let (vi, vp, lp) = (p.insert_speed, p.pull_speed, p.pull_length);
-        if lp >= CAPSTAN_THREAD - 1e-3 {
-            return Err(UsageError(format!(
-                "pull_length {lp} m would pull the tip back into the bend (max {} m)",
-                CAPSTAN_THREAD - 1e-3
-            )));
-        }
-        let t1 = ins / vi;
-        // The tension is applied only once the wire is threaded (a dead
-        // force on the tip while it is fed would drag it across the entry
-        // straight into the wall): it ramps up over CAPSTAN_RAMP, then the
-        // wire dwells before the pull.
-        rod.tip_load_ramp = Some(LoadRamp::linear(t1, t1 + CAPSTAN_RAMP));
-        let t2 = t1 + CAPSTAN_RAMP + CAPSTAN_DWELL;
-        let t3 = t2 + lp / vp;
-        let mut scene = Scene::empty(INFO.id);
-        scene.duration = t3;
-        scene.bodies.push(rod.into());
-        scene.environment.vessel = Some(Arc::new(tube.clone()));
-        scene.environment.contact = ContactParams {
-            friction_static: mu,
-            friction_dynamic: mu,
-            margin: r,
-        };
-        scene.control = timeline(&[(0.0, 0.0, 0.0), (t1, ins, 0.0), (t2, ins, 0.0), (t3, ins - lp, 0.0)]);
-        scene.validate().map_err(UsageError)?;
-        let ei = e * PI * r.powi(4) / 4.0;
-        let ratio_ref = capstan_ratio(mu, theta);
-        Ok(Box::new(CapstanRun {
-            scene,
-            tube,
-            wire_radius: r,
-            t_in,
-            ratio_ref,
-            // Measure over the last 60% of the pull: past the stick-to-slip transient.
-            window: (t2 + 0.4 * (t3 - t2), t3),
-            axis: Vec3::x(),
-            bending: ei / (rc * rc * t_in),
-            energy: t_in * ratio_ref * (ins + l0) + ei * (ins + l0) / (rc * rc),
-        }))
-    }
+    let t1 = ins / vi;
+    // The tension is applied only once the wire is threaded (a dead
+    // force on the tip while it is fed would drag it across the entry
+    // straight into the wall): it ramps up over CAPSTAN_RAMP, then the
+    // wire dwells before the pull.
+    rod.tip_load_ramp = Some(LoadRamp::linear(t1, t1 + CAPSTAN_RAMP));
+    let t2 = t1 + CAPSTAN_RAMP + CAPSTAN_DWELL;
+    let t3 = t2 + lp / vp;
+    let mut scene = Scene::empty(CAPSTAN.info.id);
+    scene.duration = t3;
+    scene.bodies.push(rod.into());
+    scene.environment.vessel = Some(Arc::new(tube));
+    scene.environment.contact = ContactParams {
+        friction_static: mu,
+        friction_dynamic: mu,
+        margin: r,
+    };
+    scene.control = timeline(&[(0.0, 0.0, 0.0), (t1, ins, 0.0), (t2, ins, 0.0), (t3, ins - lp, 0.0)]);
+    scene.validate().map_err(UsageError)?;
+    let ei = e * PI * r.powi(4) / 4.0;
+    let ratio_ref = capstan_ratio(mu, theta);
+    let energy = t_in * ratio_ref * (ins + l0) + ei * (ins + l0) / (rc * rc);
+    let run = CapstanRun {
+        wire_radius: r,
+        t_in,
+        ratio_ref,
+        // Measure over the last 60% of the pull: past the stick-to-slip transient.
+        window: (t2 + 0.4 * (t3 - t2), t3),
+        axis: Vec3::x(),
+        bending: ei / (rc * rc * t_in),
+    };
+    Ok(vessel_run(scene, run, energy, 0.1))
 }

@@ -4,19 +4,10 @@
 use super::coronary_tortuous::{C_L0, C_MU_D, C_MU_S, C_PUSH, CoronaryParams, coronary_run};
 use super::*;
 use crate::params;
-use crate::scenario::{ParamSpec, Params, Range, Scenario, ScenarioInfo, ScenarioRun, UsageError, sweep_of};
+use crate::scenario::{Declared, Inputs, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError};
 use std::sync::Arc;
+use surgbench_core::Family;
 use surgbench_core::motion::CardiacMotion;
-use surgbench_core::{Family, Fidelity};
-
-/// The tortuous coronary on a beating heart: the lumen swings transversely
-/// ([`CardiacMotion`]) while the guidewire is pushed, pulled and rotated as
-/// in `coronary-tortuous`. The guiding catheter (the clamp) sits in the still
-/// proximal entry; past `motion_start` the vessel swings by up to
-/// `amplitude` along z at `heart_rate`, reaching full amplitude `motion_ramp`
-/// further on. The wall pushes the wire sideways twice a beat: a test of
-/// contact with a moving wall and of friction measured against it.
-pub struct CoronaryBeating;
 
 params! {
     /// Parameters of `coronary-beating`: the coronary scene's and the heart
@@ -83,46 +74,47 @@ impl BeatingParams {
     }
 }
 
-const INFO: ScenarioInfo = ScenarioInfo {
-    id: "coronary-beating",
-    description: "guidewire pushed, pulled and rotated in the tortuous coronary while the vessel swings 4 mm at 72 beats/min",
-    family: Family::Rod,
-    reference: "stability and penetration against the moving wall (geometry at each observation's time; no reference solution)",
-    primary_error: "max_penetration_m",
+/// The tortuous coronary on a beating heart: the lumen swings transversely
+/// ([`CardiacMotion`]) while the guidewire is pushed, pulled and rotated as
+/// in `coronary-tortuous`. The guiding catheter (the clamp) sits in the still
+/// proximal entry; past `motion_start` the vessel swings by up to
+/// `amplitude` along z at `heart_rate`, reaching full amplitude `motion_ramp`
+/// further on. The wall pushes the wire sideways twice a beat: a test of
+/// contact with a moving wall and of friction measured against it.
+pub const CORONARY_BEATING: Declared<BeatingParams> = Declared {
+    info: ScenarioInfo {
+        id: "coronary-beating",
+        description: "guidewire pushed, pulled and rotated in the tortuous coronary while the vessel swings 4 mm at 72 beats/min",
+        family: Family::Rod,
+        reference: "stability and penetration against the moving wall (geometry at each observation's time; no reference solution)",
+        primary_error: "max_penetration_m",
+        params: BeatingParams::SPECS,
+        sweep: Sweep::Knob("segments", &[30.0, 60.0, 120.0]),
+        quick: 3,
+    },
+    datasets: None,
+    build,
 };
 
-impl Scenario for CoronaryBeating {
-    fn info(&self) -> &'static ScenarioInfo {
-        &INFO
-    }
-    fn params(&self) -> &'static [ParamSpec] {
-        BeatingParams::SPECS
-    }
-    fn sweep(&self) -> Vec<Fidelity> {
-        sweep_of("segments", &[30.0, 60.0, 120.0])
-    }
-    fn instantiate_at(&self, params: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        let p = BeatingParams::of(params);
-        let (start, ramp) = (p.motion_start, p.motion_ramp);
-        let run = coronary_run(INFO.id, &p.coronary(), |deepest| {
-            if start <= deepest {
-                return Err(UsageError(format!(
-                    "motion_start {start} m must lie past the deepest clamp position {deepest:.3} m (the guiding catheter does not beat)"
-                )));
-            }
-            // The entry runs along +x from the origin; the swing is across it.
-            let m = CardiacMotion::new(
-                Vec3::zeros(),
-                Vec3::x(),
-                Vec3::z(),
-                start,
-                ramp,
-                p.amplitude,
-                p.heart_rate,
-            )
-            .map_err(UsageError)?;
-            Ok(Some(Arc::new(m)))
-        })?;
-        Ok(Box::new(run))
-    }
+fn build(p: &BeatingParams, _: &Inputs) -> Result<ScenarioRun, UsageError> {
+    let (start, ramp) = (p.motion_start, p.motion_ramp);
+    coronary_run(CORONARY_BEATING.info.id, &p.coronary(), |deepest| {
+        if start <= deepest {
+            return Err(UsageError(format!(
+                "motion_start {start} m must lie past the deepest clamp position {deepest:.3} m (the guiding catheter does not beat)"
+            )));
+        }
+        // The entry runs along +x from the origin; the swing is across it.
+        let m = CardiacMotion::new(
+            Vec3::zeros(),
+            Vec3::x(),
+            Vec3::z(),
+            start,
+            ramp,
+            p.amplitude,
+            p.heart_rate,
+        )
+        .map_err(UsageError)?;
+        Ok(Some(Arc::new(m)))
+    })
 }

@@ -4,15 +4,13 @@
 
 use super::*;
 use crate::params;
-use crate::scenario::{ParamSpec, Params, Range, Scenario, ScenarioInfo, ScenarioRun, Scorer, UsageError, sweep_of};
+use crate::scenario::{
+    Declared, Inputs, Metrics, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
+};
 use std::sync::Arc;
 use surgbench_core::motion::VesselMotion;
 use surgbench_core::vessel::{self, Vessel};
-use surgbench_core::{Family, Fidelity, Scene};
-
-/// Push, pull and rotate a guidewire for 60 s in a tortuous coronary:
-/// multi-point contact along the whole wire.
-pub struct CoronaryTortuous;
+use surgbench_core::{Family, Scene};
 
 /// Friction of the coated coronary wire, static.
 pub(super) const C_MU_S: ParamSpec = ParamSpec::new(
@@ -72,10 +70,9 @@ params! {
 }
 
 pub(super) struct CoronaryRun {
-    scene: Scene,
     vessel: Arc<Vessel>,
+    motion: Option<Arc<dyn VesselMotion>>,
     wire_radius: f64,
-    energy: f64,
 }
 
 /// Cycles of 6 s: push 2 s, pull 1 s, rotate +pi/2 (1 s), hold 1 s, rotate
@@ -106,83 +103,39 @@ fn push_pull_rotate(v: f64, duration: f64) -> ControlTimeline {
     timeline(&keys)
 }
 
-/// One coronary run's sums: the common ones, penetration measured against
-/// the lumen at each observation's time (the moved wall when it beats).
-struct CoronaryScorer<'a> {
-    run: &'a CoronaryRun,
-    common: Common,
-}
-
-impl Scorer for CoronaryScorer<'_> {
-    fn observe_step(&mut self, obs: &Observation) {
-        if tip(obs).is_none() {
-            return;
-        }
-        if let Some(lumen) = self.run.scene.environment.vessel_at(obs.time) {
-            self.common.add(lumen.as_ref(), obs, self.run.wire_radius);
-        }
+impl Trajectory for CoronaryRun {
+    type Sums = ();
+    fn wire_radius(&self) -> f64 {
+        self.wire_radius
     }
-    /// Progress is the tip's rest point projected on the centreline.
-    fn score(&self, obs: &Observation) -> Metrics {
-        let Some(tip) = tip(obs) else { return Metrics::new() };
-        let env = &self.run.scene.environment;
-        if env.vessel_at(obs.time).is_none() {
-            return Metrics::new();
-        }
-        let mut m = self.common.metrics(obs);
-        let rest_tip = env
-            .vessel_motion
-            .as_ref()
-            .map_or(tip, |mo| mo.rest_point(&tip, obs.time));
-        m.insert("tip_progress_m".into(), self.run.vessel.trunk.project(&rest_tip).s);
-        m
+    fn add(&self, _: &mut (), _: &Observation, _: &Vec3) {}
+    /// Progress is the tip's rest point projected on the centreline (the
+    /// moved tip pulled back through the heart's motion, if any).
+    fn metrics(&self, _: &(), _: &Common, obs: &Observation, tip: &Vec3, m: &mut Metrics) {
+        let rest_tip = self.motion.as_ref().map_or(*tip, |mo| mo.rest_point(tip, obs.time));
+        m.insert("tip_progress_m".into(), self.vessel.trunk.project(&rest_tip).s);
     }
 }
 
-impl ScenarioRun for CoronaryRun {
-    fn scene(&self) -> &Scene {
-        &self.scene
-    }
-    fn scorer(&self) -> Box<dyn Scorer + '_> {
-        Box::new(CoronaryScorer {
-            run: self,
-            common: Common::default(),
-        })
-    }
-    fn energy_scale(&self) -> f64 {
-        self.energy
-    }
-    fn length_scale(&self) -> f64 {
-        0.15
-    }
-    fn penetration_limit(&self) -> f64 {
-        0.5 * self.wire_radius
-    }
-}
-
-const INFO: ScenarioInfo = ScenarioInfo {
-    id: "coronary-tortuous",
-    description: "guidewire pushed, pulled and rotated for 60 s in a tortuous 3 mm coronary (bends down to 5 mm radius)",
-    family: Family::Rod,
-    reference: "stability and penetration: wire surface depth past the wall from the geometry (no reference solution)",
-    primary_error: "max_penetration_m",
+/// Push, pull and rotate a guidewire for 60 s in a tortuous coronary:
+/// multi-point contact along the whole wire.
+pub const CORONARY_TORTUOUS: Declared<CoronaryParams> = Declared {
+    info: ScenarioInfo {
+        id: "coronary-tortuous",
+        description: "guidewire pushed, pulled and rotated for 60 s in a tortuous 3 mm coronary (bends down to 5 mm radius)",
+        family: Family::Rod,
+        reference: "stability and penetration: wire surface depth past the wall from the geometry (no reference solution)",
+        primary_error: "max_penetration_m",
+        params: CoronaryParams::SPECS,
+        sweep: Sweep::Knob("segments", &[30.0, 60.0, 120.0]),
+        quick: 3,
+    },
+    datasets: None,
+    build,
 };
 
-impl Scenario for CoronaryTortuous {
-    fn info(&self) -> &'static ScenarioInfo {
-        &INFO
-    }
-    fn params(&self) -> &'static [ParamSpec] {
-        CoronaryParams::SPECS
-    }
-    fn sweep(&self) -> Vec<Fidelity> {
-        sweep_of("segments", &[30.0, 60.0, 120.0])
-    }
-    fn instantiate_at(&self, params: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        Ok(Box::new(coronary_run(INFO.id, &CoronaryParams::of(params), |_| {
-            Ok(None)
-        })?))
-    }
+fn build(p: &CoronaryParams, _: &Inputs) -> Result<ScenarioRun, UsageError> {
+    coronary_run(CORONARY_TORTUOUS.info.id, p, |_| Ok(None))
 }
 
 /// The coronary scene of `coronary-tortuous` and `coronary-beating`: the
@@ -192,7 +145,7 @@ pub(super) fn coronary_run(
     id: &str,
     p: &CoronaryParams,
     motion: impl FnOnce(f64) -> Result<Option<Arc<dyn VesselMotion>>, UsageError>,
-) -> Result<CoronaryRun, UsageError> {
+) -> Result<ScenarioRun, UsageError> {
     let wire = wire!(p);
     check_lumen(wire.radius, vessel::CORONARY_RADIUS, "coronary")?;
     let l0 = p.initial_length;
@@ -223,11 +176,12 @@ pub(super) fn coronary_run(
     scene.environment.contact = contact(p.friction_static, p.friction_dynamic, wire.radius)?;
     scene.control = push_pull_rotate(v, duration);
     scene.validate().map_err(UsageError)?;
-    Ok(CoronaryRun {
-        scene,
-        // The whole wire bent to the tightest 5 mm bend.
-        energy: wire.body_ei() * (l0 + advance) / 25e-6,
+    // The whole wire bent to the tightest 5 mm bend.
+    let energy = wire.body_ei() * (l0 + advance) / 25e-6;
+    let run = CoronaryRun {
         vessel: cor,
+        motion: scene.environment.vessel_motion.clone(),
         wire_radius: wire.radius,
-    })
+    };
+    Ok(vessel_run(scene, run, energy, 0.15))
 }

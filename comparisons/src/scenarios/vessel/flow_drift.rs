@@ -4,29 +4,14 @@
 use super::*;
 use crate::params;
 use crate::references::{TipTrajectory, cached_reference};
-use crate::scenario::{ParamSpec, Params, Range, Scenario, ScenarioInfo, ScenarioRun, Scorer, UsageError, sweep_of};
+use crate::scenario::{
+    Declared, Inputs, Metrics, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
+};
 use std::sync::Arc;
 use surgbench_core::Settle;
 use surgbench_core::sdf::StraightTube;
 use surgbench_core::vessel::PoiseuilleFlow;
-use surgbench_core::{Family, Fidelity, Scene};
-
-/// A short soft wire tip in Poiseuille flow, clamped on the tube axis and
-/// tilted upstream: the flow swings it downstream towards the wall (130 um
-/// from the tip), where friction would stop it. Whether it gets there
-/// depends on the model's flow law: DER's quadratic drag (Re ~ 135 here)
-/// deflects the default 2.8 mm, 1 MPa tip by ~10 um (DER's reference
-/// trajectory says so); the chain-mail rule moves elements with the blood.
-pub struct FlowDrift {
-    /// Datasets folder holding `reference/flow-drift/tip_trajectory.csv`
-    /// (`None`: [`datasets_dir`](crate::datasets::datasets_dir)).
-    pub datasets: Option<&'static str>,
-}
-
-impl FlowDrift {
-    /// The registered instance (reference from [`datasets_dir`](crate::datasets::datasets_dir)).
-    pub const DEFAULT: Self = Self { datasets: None };
-}
+use surgbench_core::{Family, Scene};
 
 params! {
     /// Parameters of `flow-drift`.
@@ -83,127 +68,95 @@ params! {
 }
 
 struct FlowRun {
-    scene: Scene,
     tube: StraightTube,
     tip0: Vec3,
     wire_radius: f64,
     reference: Option<TipTrajectory>,
-    energy: f64,
 }
 
-/// One flow run's sums: the common ones.
-struct FlowScorer<'a> {
-    run: &'a FlowRun,
-    common: Common,
-}
-
-impl Scorer for FlowScorer<'_> {
-    fn observe_step(&mut self, obs: &Observation) {
-        if tip(obs).is_some() {
-            self.common.add(&self.run.tube, obs, self.run.wire_radius);
-        }
+impl Trajectory for FlowRun {
+    type Sums = ();
+    fn wire_radius(&self) -> f64 {
+        self.wire_radius
     }
-    fn score(&self, obs: &Observation) -> Metrics {
-        let Some(tip) = tip(obs) else { return Metrics::new() };
-        let run = self.run;
-        let mut m = self.common.metrics(obs);
-        m.insert("tip_drift_m".into(), tip.x - run.tip0.x);
-        m.insert("tip_wall_gap_m".into(), -run.tube.distance(&tip) - run.wire_radius);
-        m.insert("reference_available".into(), run.reference.is_some() as u8 as f64);
-        if let Some(r) = &run.reference {
+    fn add(&self, _: &mut (), _: &Observation, _: &Vec3) {}
+    fn metrics(&self, _: &(), _: &Common, obs: &Observation, tip: &Vec3, m: &mut Metrics) {
+        m.insert("tip_drift_m".into(), tip.x - self.tip0.x);
+        m.insert("tip_wall_gap_m".into(), -self.tube.distance(tip) - self.wire_radius);
+        m.insert("reference_available".into(), self.reference.is_some() as u8 as f64);
+        if let Some(r) = &self.reference {
             m.insert("tip_error_m".into(), (tip - r.at(obs.time)).norm());
         }
-        m
     }
 }
 
-impl ScenarioRun for FlowRun {
-    fn scene(&self) -> &Scene {
-        &self.scene
-    }
-    fn scorer(&self) -> Box<dyn Scorer + '_> {
-        Box::new(FlowScorer {
-            run: self,
-            common: Common::default(),
-        })
-    }
-    fn energy_scale(&self) -> f64 {
-        self.energy
-    }
-    fn length_scale(&self) -> f64 {
-        0.02
-    }
-    fn penetration_limit(&self) -> f64 {
-        0.5 * self.wire_radius
-    }
-}
-
-const INFO: ScenarioInfo = ScenarioInfo {
-    id: "flow-drift",
-    description: "soft wire tip tilted upstream in Poiseuille flow: how far the flow swings it towards the wall (130 um away); a drag law at Re ~ 135 moves it ~10 um, a displacement rule may carry it onto the wall, where friction holds it",
-    family: Family::Rod,
-    reference: "converged DER tip trajectory cached in datasets/reference/flow-drift/tip_trajectory.csv (default parameters only; the drag law is each model's own); otherwise drift, wall gap and penetration only",
-    primary_error: "tip_error_m",
+/// A short soft wire tip in Poiseuille flow, clamped on the tube axis and
+/// tilted upstream: the flow swings it downstream towards the wall (130 um
+/// from the tip), where friction would stop it. Whether it gets there
+/// depends on the model's flow law: DER's quadratic drag (Re ~ 135 here)
+/// deflects the default 2.8 mm, 1 MPa tip by ~10 um (DER's reference
+/// trajectory says so); the chain-mail rule moves elements with the blood.
+pub const FLOW_DRIFT: Declared<FlowParams> = Declared {
+    info: ScenarioInfo {
+        id: "flow-drift",
+        description: "soft wire tip tilted upstream in Poiseuille flow: how far the flow swings it towards the wall (130 um away); a drag law at Re ~ 135 moves it ~10 um, a displacement rule may carry it onto the wall, where friction holds it",
+        family: Family::Rod,
+        reference: "converged DER tip trajectory cached in datasets/reference/flow-drift/tip_trajectory.csv (default parameters only; the drag law is each model's own); otherwise drift, wall gap and penetration only",
+        primary_error: "tip_error_m",
+        params: FlowParams::SPECS,
+        sweep: Sweep::Knob("segments", &[5.0, 10.0, 20.0, 40.0]),
+        quick: 3,
+    },
+    datasets: None,
+    build,
 };
 
-impl Scenario for FlowDrift {
-    fn info(&self) -> &'static ScenarioInfo {
-        &INFO
+fn build(p: &FlowParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
+    let r = p.wire_radius;
+    let big_r = p.tube_radius;
+    check_lumen(r, big_r, "tube")?;
+    let (l, a) = (p.free_length, p.angle);
+    let dir = Vec3::new(a.cos(), a.sin(), 0.0);
+    let tip0 = dir * l;
+    if tip0.y + r >= big_r {
+        return Err(UsageError(format!(
+            "the straight tip reaches {:.3e} m from the axis: it would start in the {big_r} m tube's wall",
+            tip0.y + r
+        )));
     }
-    fn params(&self) -> &'static [ParamSpec] {
-        FlowParams::SPECS
-    }
-    fn sweep(&self) -> Vec<Fidelity> {
-        sweep_of("segments", &[5.0, 10.0, 20.0, 40.0])
-    }
-    fn instantiate_at(&self, params: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        let p = FlowParams::of(params);
-        let r = p.wire_radius;
-        let big_r = p.tube_radius;
-        check_lumen(r, big_r, "tube")?;
-        let (l, a) = (p.free_length, p.angle);
-        let dir = Vec3::new(a.cos(), a.sin(), 0.0);
-        let tip0 = dir * l;
-        if tip0.y + r >= big_r {
-            return Err(UsageError(format!(
-                "the straight tip reaches {:.3e} m from the axis: it would start in the {big_r} m tube's wall",
-                tip0.y + r
-            )));
-        }
-        let e = p.youngs_modulus;
-        let mut rod = RodBody::uniform(l, r, e, p.poisson_ratio, p.density);
-        rod.base = Iso3::rotation(Vec3::z() * a);
-        let tube = StraightTube {
-            origin: Vec3::zeros(),
-            axis: Vec3::x(),
-            radius: big_r,
-        };
-        let v = p.flow_speed;
-        let mut scene = Scene::empty(INFO.id);
-        scene.duration = p.duration;
-        scene.settle = Some(Settle {
-            velocity_tol: p.settle_tol,
-            min_time: 0.05,
-        });
-        scene.bodies.push(rod.into());
-        scene.environment.vessel = Some(Arc::new(tube));
-        scene.environment.flow = Some(Arc::new(PoiseuilleFlow {
-            origin: Vec3::zeros(),
-            axis: Vec3::x(),
-            radius: big_r,
-            v_max: v,
-        }));
-        scene.environment.contact = contact(p.friction_static, p.friction_dynamic, r)?;
-        scene.validate().map_err(UsageError)?;
-        // Dynamic pressure times the wire's projected area, over the length.
-        let drag = 0.5 * 1060.0 * v * v * 2.0 * r * l;
-        Ok(Box::new(FlowRun {
-            scene,
-            tube,
-            tip0,
-            wire_radius: r,
-            reference: cached_reference(INFO.id, params, self.datasets)?,
-            energy: (drag * l).max(e * PI * r.powi(4) / 4.0 / l),
-        }))
-    }
+    let e = p.youngs_modulus;
+    let mut rod = RodBody::uniform(l, r, e, p.poisson_ratio, p.density);
+    rod.base = Iso3::rotation(Vec3::z() * a);
+    let tube = StraightTube {
+        origin: Vec3::zeros(),
+        axis: Vec3::x(),
+        radius: big_r,
+    };
+    let v = p.flow_speed;
+    let mut scene = Scene::empty(FLOW_DRIFT.info.id);
+    scene.duration = p.duration;
+    scene.settle = Some(Settle {
+        velocity_tol: p.settle_tol,
+        min_time: 0.05,
+    });
+    scene.bodies.push(rod.into());
+    scene.environment.vessel = Some(Arc::new(tube));
+    scene.environment.flow = Some(Arc::new(PoiseuilleFlow {
+        origin: Vec3::zeros(),
+        axis: Vec3::x(),
+        radius: big_r,
+        v_max: v,
+    }));
+    scene.environment.contact = contact(p.friction_static, p.friction_dynamic, r)?;
+    scene.validate().map_err(UsageError)?;
+    // Dynamic pressure times the wire's projected area, over the length.
+    let drag = 0.5 * 1060.0 * v * v * 2.0 * r * l;
+    let energy = (drag * l).max(e * PI * r.powi(4) / 4.0 / l);
+    let run = FlowRun {
+        tube,
+        tip0,
+        wire_radius: r,
+        reference: cached_reference(FLOW_DRIFT.info.id, inputs)?,
+    };
+    Ok(vessel_run(scene, run, energy, 0.02))
 }

@@ -13,8 +13,8 @@
 //!
 //! **Trajectory metrics.** Metrics over a whole run (time to reach a
 //! target, maximum penetration, mean and peak hand force, tension averaged
-//! over a pulling window) are sums each run's [`Scorer`](crate::Scorer) keeps over the
-//! observation after every step ([`Scorer::observe_step`](crate::Scorer::observe_step)); a fresh scorer
+//! over a pulling window) are sums each run's [`Scorer`] keeps over the
+//! observation after every step ([`Scorer::observe_step`]); a fresh scorer
 //! serves each run and each repeat.
 //!
 //! Scenarios: `arch-insertion`, `branch-selection`, `flow-drift`,
@@ -28,29 +28,29 @@ mod coronary_tortuous;
 mod flow_drift;
 mod stick_slip_threshold;
 
-pub use arch_insertion::ArchInsertion;
-pub use branch_selection::BranchSelection;
-pub use capstan::Capstan;
-pub use coronary_beating::CoronaryBeating;
-pub use coronary_tortuous::CoronaryTortuous;
-pub use flow_drift::FlowDrift;
-pub use stick_slip_threshold::StickSlipThreshold;
+pub use arch_insertion::{ARCH_INSERTION, ArchParams};
+pub use branch_selection::{BRANCH_SELECTION, BranchParams};
+pub use capstan::{CAPSTAN, CapstanParams};
+pub use coronary_beating::{BeatingParams, CORONARY_BEATING};
+pub use coronary_tortuous::{CORONARY_TORTUOUS, CoronaryParams};
+pub use flow_drift::{FLOW_DRIFT, FlowParams};
+pub use stick_slip_threshold::{STICK_SLIP_THRESHOLD, StickParams};
 
-use crate::scenario::{Metrics, ParamSpec, Range, Scenario, UsageError};
+use crate::scenario::{Metrics, ParamSpec, Range, Reference, Scenario, ScenarioRun, Scorer, UsageError};
 use std::f64::consts::PI;
 use surgbench_core::sdf::Sdf;
-use surgbench_core::{ContactParams, ControlKey, ControlTimeline, Iso3, Observation, RodBody, RodSection, Vec3};
+use surgbench_core::{ContactParams, ControlKey, ControlTimeline, Iso3, Observation, RodBody, RodSection, Scene, Vec3};
 
 /// Every vessel scenario, in report order.
 pub fn all() -> Vec<&'static dyn Scenario> {
     vec![
-        &ArchInsertion::DEFAULT,
-        &BranchSelection,
-        &FlowDrift::DEFAULT,
-        &Capstan,
-        &StickSlipThreshold,
-        &CoronaryTortuous,
-        &CoronaryBeating,
+        &ARCH_INSERTION,
+        &BRANCH_SELECTION,
+        &FLOW_DRIFT,
+        &CAPSTAN,
+        &STICK_SLIP_THRESHOLD,
+        &CORONARY_TORTUOUS,
+        &CORONARY_BEATING,
     ]
 }
 
@@ -277,6 +277,66 @@ impl Common {
         }
         m
     }
+}
+
+/// A vessel scene scored over a whole run: the [`Common`] sums against the
+/// lumen at each observation's time (the moved wall when the vessel beats)
+/// plus the scene's own sums, over the observations that hold a wire tip.
+trait Trajectory: Send + Sync + 'static {
+    /// The scene's own run-wide sums.
+    type Sums: Default;
+    /// Wire radius (m): the geometric penetration is `phi + r`.
+    fn wire_radius(&self) -> f64;
+    /// Add one observation whose wire tip is at `tip` (m).
+    fn add(&self, sums: &mut Self::Sums, obs: &Observation, tip: &Vec3);
+    /// The scene's metrics of `obs` (tip at `tip`) with the sums so far, added
+    /// to the common ones in `m`.
+    fn metrics(&self, sums: &Self::Sums, common: &Common, obs: &Observation, tip: &Vec3, m: &mut Metrics);
+}
+
+/// A [`Trajectory`] as a scenario's [`Reference`].
+struct Tracks<R>(R);
+
+/// One run's sums of a [`Trajectory`] scene.
+struct Tracked<'a, R: Trajectory> {
+    run: &'a R,
+    scene: &'a Scene,
+    common: Common,
+    sums: R::Sums,
+}
+
+impl<R: Trajectory> Reference for Tracks<R> {
+    fn scorer<'a>(&'a self, scene: &'a Scene) -> Box<dyn Scorer + 'a> {
+        Box::new(Tracked {
+            run: &self.0,
+            scene,
+            common: Common::default(),
+            sums: R::Sums::default(),
+        })
+    }
+}
+
+impl<R: Trajectory> Scorer for Tracked<'_, R> {
+    fn observe_step(&mut self, obs: &Observation) {
+        let (Some(tip), Some(lumen)) = (tip(obs), self.scene.environment.vessel_at(obs.time)) else {
+            return;
+        };
+        self.common.add(lumen.as_ref(), obs, self.run.wire_radius());
+        self.run.add(&mut self.sums, obs, &tip);
+    }
+    fn score(&self, obs: &Observation) -> Metrics {
+        let Some(tip) = tip(obs) else { return Metrics::new() };
+        let mut m = self.common.metrics(obs);
+        self.run.metrics(&self.sums, &self.common, obs, &tip, &mut m);
+        m
+    }
+}
+
+/// A vessel scene's instance: `run`'s trajectory scored, the penetration
+/// watchdog at half the wire radius, energy (J) and length (m) scales.
+fn vessel_run<R: Trajectory>(scene: Scene, run: R, energy: f64, length: f64) -> ScenarioRun {
+    let limit = 0.5 * run.wire_radius();
+    ScenarioRun::new(scene, Tracks(run), energy, length).with_penetration_limit(limit)
 }
 
 /// Largest depth of the wire's surface past the wall: `max(phi(x) + r, 0)`

@@ -3,15 +3,12 @@
 
 use super::*;
 use crate::params;
-use crate::scenario::{ParamSpec, Params, Range, Scenario, ScenarioInfo, ScenarioRun, Scorer, UsageError, sweep_of};
+use crate::scenario::{
+    Declared, Inputs, Metrics, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
+};
 use std::sync::Arc;
 use surgbench_core::sdf::StraightTube;
-use surgbench_core::{Family, Fidelity, Scene};
-
-/// A wire lying on the floor of a straight tube under gravity, pulled back
-/// slowly by the clamp: the tip must not move until the hand force reaches
-/// `mu_s N` (N = the wire's weight) and must slide at `mu_d N` after.
-pub struct StickSlipThreshold;
+use surgbench_core::{Family, Scene};
 
 params! {
     /// Parameters of `stick-slip-threshold`.
@@ -57,8 +54,6 @@ params! {
 }
 
 struct StickRun {
-    scene: Scene,
-    tube: StraightTube,
     wire_radius: f64,
     weight: f64,
     mu_s: f64,
@@ -66,15 +61,13 @@ struct StickRun {
     settle: f64,
     tail_from: f64,
     slip_tol: f64,
-    energy: f64,
 }
 
-/// One stick-slip run's sums: the common ones, the tip's anchor after
+/// One stick-slip run's own sums: the tip's anchor after
 /// settling, the slip (time, largest force held before it), creep before
 /// the load neared the threshold, and the force while sliding.
 #[derive(Default)]
 struct StickSums {
-    common: Common,
     anchor: Option<Vec3>,
     slip_at: Option<(f64, f64)>,
     stick_force_max: f64,
@@ -82,11 +75,6 @@ struct StickSums {
     loaded: bool,
     tail_sum: f64,
     tail_n: usize,
-}
-
-struct StickScorer<'a> {
-    run: &'a StickRun,
-    sums: StickSums,
 }
 
 impl StickRun {
@@ -100,7 +88,6 @@ impl StickSums {
     /// Add one observation with the wire's tip at `tip` pulled by `f` (N,
     /// the wire pulls the clamp along +x).
     fn add(&mut self, run: &StickRun, obs: &Observation, tip: Vec3, f: f64) {
-        self.common.add(&run.tube, obs, run.wire_radius);
         if obs.time < run.settle {
             return;
         }
@@ -127,18 +114,18 @@ impl StickSums {
     }
 }
 
-impl Scorer for StickScorer<'_> {
-    fn observe_step(&mut self, obs: &Observation) {
-        let Some(tip) = tip(obs) else { return };
-        self.sums.add(self.run, obs, tip, obs.hand_force.x);
+impl Trajectory for StickRun {
+    type Sums = StickSums;
+    fn wire_radius(&self) -> f64 {
+        self.wire_radius
     }
-    fn score(&self, obs: &Observation) -> Metrics {
-        if tip(obs).is_none() {
-            return Metrics::new();
-        }
-        let (run, t) = (self.run, &self.sums);
+    fn add(&self, sums: &mut StickSums, obs: &Observation, tip: &Vec3) {
+        // The wire resists the pull: it pulls the clamp along +x.
+        sums.add(self, obs, *tip, obs.hand_force.x);
+    }
+    fn metrics(&self, t: &StickSums, _: &Common, _: &Observation, _: &Vec3, m: &mut Metrics) {
+        let run = self;
         let threshold = run.threshold();
-        let mut m = t.common.metrics(obs);
         m.insert("threshold_ref_n".into(), threshold);
         m.insert("slipped".into(), t.slip_at.is_some() as u8 as f64);
         // Without a slip the threshold was never found: the error is the
@@ -158,104 +145,78 @@ impl Scorer for StickScorer<'_> {
                 m.insert("sliding_force_error_rel".into(), (sliding - r).abs() / r);
             }
         }
-        m
     }
 }
 
-impl ScenarioRun for StickRun {
-    fn scene(&self) -> &Scene {
-        &self.scene
-    }
-    fn scorer(&self) -> Box<dyn Scorer + '_> {
-        Box::new(StickScorer {
-            run: self,
-            sums: StickSums::default(),
-        })
-    }
-    fn energy_scale(&self) -> f64 {
-        self.energy
-    }
-    fn length_scale(&self) -> f64 {
-        0.2
-    }
-    fn penetration_limit(&self) -> f64 {
-        0.5 * self.wire_radius
-    }
-}
-
-const INFO: ScenarioInfo = ScenarioInfo {
-    id: "stick-slip-threshold",
-    description: "wire resting on a tube wall under gravity, pulled slowly: static threshold mu_s N, sliding at mu_d N",
-    family: Family::Rod,
-    reference: "Coulomb: no tip motion below mu_s N, sliding force mu_d N, N = rho A L g (displacement-controlled pull)",
-    primary_error: "threshold_error_rel",
+/// A wire lying on the floor of a straight tube under gravity, pulled back
+/// slowly by the clamp: the tip must not move until the hand force reaches
+/// `mu_s N` (N = the wire's weight) and must slide at `mu_d N` after.
+pub const STICK_SLIP_THRESHOLD: Declared<StickParams> = Declared {
+    info: ScenarioInfo {
+        id: "stick-slip-threshold",
+        description: "wire resting on a tube wall under gravity, pulled slowly: static threshold mu_s N, sliding at mu_d N",
+        family: Family::Rod,
+        reference: "Coulomb: no tip motion below mu_s N, sliding force mu_d N, N = rho A L g (displacement-controlled pull)",
+        primary_error: "threshold_error_rel",
+        params: StickParams::SPECS,
+        sweep: Sweep::Knob("segments", &[10.0, 20.0, 40.0, 80.0]),
+        quick: 3,
+    },
+    datasets: None,
+    build,
 };
 
-impl Scenario for StickSlipThreshold {
-    fn info(&self) -> &'static ScenarioInfo {
-        &INFO
+fn build(p: &StickParams, _: &Inputs) -> Result<ScenarioRun, UsageError> {
+    let r = p.wire_radius;
+    let big_r = p.tube_radius;
+    check_lumen(r, big_r, "tube")?;
+    let (mu_s, mu_d) = (p.friction_static, p.friction_dynamic);
+    if mu_d > mu_s {
+        return Err(UsageError(format!(
+            "friction_dynamic {mu_d} must not exceed friction_static {mu_s}"
+        )));
     }
-    fn params(&self) -> &'static [ParamSpec] {
-        StickParams::SPECS
+    let (l, g, rho, e) = (p.length, p.gravity, p.density, p.youngs_modulus);
+    let mut rod = RodBody::uniform(l, r, e, p.poisson_ratio, rho);
+    // Lying on the floor: the centreline one wire radius above the wall.
+    rod.base = Iso3::translation(0.0, 0.0, -(big_r - r));
+    let tube = StraightTube {
+        origin: Vec3::zeros(),
+        axis: Vec3::x(),
+        radius: big_r,
+    };
+    let (ts, vp, tp) = (p.settle_time, p.pull_speed, p.pull_time);
+    let weight = rho * PI * r * r * l * g;
+    let ea = e * PI * r * r;
+    // A uniformly loaded elastic bar slips entirely when the clamp has
+    // moved mu_s w L^2 / (2 EA): the pull must go well past that.
+    let needed = mu_s * weight * l / (2.0 * ea);
+    if vp * tp < 3.0 * needed {
+        return Err(UsageError(format!(
+            "pull of {:.3e} m is shorter than 3x the elastic slack {needed:.3e} m before full slip: raise pull_speed or pull_time",
+            vp * tp
+        )));
     }
-    fn sweep(&self) -> Vec<Fidelity> {
-        sweep_of("segments", &[10.0, 20.0, 40.0, 80.0])
-    }
-    fn instantiate_at(&self, params: &Params, _fidelity: &Fidelity) -> Result<Box<dyn ScenarioRun>, UsageError> {
-        let p = StickParams::of(params);
-        let r = p.wire_radius;
-        let big_r = p.tube_radius;
-        check_lumen(r, big_r, "tube")?;
-        let (mu_s, mu_d) = (p.friction_static, p.friction_dynamic);
-        if mu_d > mu_s {
-            return Err(UsageError(format!(
-                "friction_dynamic {mu_d} must not exceed friction_static {mu_s}"
-            )));
-        }
-        let (l, g, rho, e) = (p.length, p.gravity, p.density, p.youngs_modulus);
-        let mut rod = RodBody::uniform(l, r, e, p.poisson_ratio, rho);
-        // Lying on the floor: the centreline one wire radius above the wall.
-        rod.base = Iso3::translation(0.0, 0.0, -(big_r - r));
-        let tube = StraightTube {
-            origin: Vec3::zeros(),
-            axis: Vec3::x(),
-            radius: big_r,
-        };
-        let (ts, vp, tp) = (p.settle_time, p.pull_speed, p.pull_time);
-        let weight = rho * PI * r * r * l * g;
-        let ea = e * PI * r * r;
-        // A uniformly loaded elastic bar slips entirely when the clamp has
-        // moved mu_s w L^2 / (2 EA): the pull must go well past that.
-        let needed = mu_s * weight * l / (2.0 * ea);
-        if vp * tp < 3.0 * needed {
-            return Err(UsageError(format!(
-                "pull of {:.3e} m is shorter than 3x the elastic slack {needed:.3e} m before full slip: raise pull_speed or pull_time",
-                vp * tp
-            )));
-        }
-        let mut scene = Scene::empty(INFO.id);
-        scene.duration = ts + tp;
-        scene.gravity = Vec3::new(0.0, 0.0, -g);
-        scene.bodies.push(rod.into());
-        scene.environment.vessel = Some(Arc::new(tube));
-        scene.environment.contact = ContactParams {
-            friction_static: mu_s,
-            friction_dynamic: mu_d,
-            margin: r,
-        };
-        scene.control = timeline(&[(0.0, 0.0, 0.0), (ts, 0.0, 0.0), (ts + tp, -vp * tp, 0.0)]);
-        scene.validate().map_err(UsageError)?;
-        Ok(Box::new(StickRun {
-            scene,
-            tube,
-            wire_radius: r,
-            weight,
-            mu_s,
-            mu_d,
-            settle: ts,
-            tail_from: ts + 0.7 * tp,
-            slip_tol: p.slip_tol,
-            energy: weight * (big_r + vp * tp),
-        }))
-    }
+    let mut scene = Scene::empty(STICK_SLIP_THRESHOLD.info.id);
+    scene.duration = ts + tp;
+    scene.gravity = Vec3::new(0.0, 0.0, -g);
+    scene.bodies.push(rod.into());
+    scene.environment.vessel = Some(Arc::new(tube));
+    scene.environment.contact = ContactParams {
+        friction_static: mu_s,
+        friction_dynamic: mu_d,
+        margin: r,
+    };
+    scene.control = timeline(&[(0.0, 0.0, 0.0), (ts, 0.0, 0.0), (ts + tp, -vp * tp, 0.0)]);
+    scene.validate().map_err(UsageError)?;
+    let run = StickRun {
+        wire_radius: r,
+        weight,
+        mu_s,
+        mu_d,
+        settle: ts,
+        tail_from: ts + 0.7 * tp,
+        slip_tol: p.slip_tol,
+    };
+    Ok(vessel_run(scene, run, weight * (big_r + vp * tp), 0.2))
 }
