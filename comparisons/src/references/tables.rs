@@ -22,45 +22,48 @@ pub fn read_meta(dir: &Path) -> Result<(toml::Table, PathBuf), UsageError> {
 }
 
 /// The named `columns` of a numeric CSV whose first line is a header, in
-/// the order asked, one `Vec` per row; a missing column, a short row or a
-/// non-finite number is an error naming file, line and column.
+/// the order asked, one `Vec` per row; a missing column, a short or long
+/// row, text that is not UTF-8 or a non-finite number is an error naming
+/// file, line and column. Blank lines and lines starting with `#` (the
+/// provenance a reference file opens with) are skipped.
 pub fn read_csv_columns(file: &Path, columns: &[&str]) -> Result<Vec<Vec<f64>>, UsageError> {
-    let text = std::fs::read_to_string(file).map_err(|e| UsageError(format!("cannot read {}: {e}", file.display())))?;
-    let mut lines = text.lines().enumerate();
-    let header: Vec<&str> = lines
-        .next()
-        .map(|(_, h)| h.split(',').map(str::trim).collect())
-        .unwrap_or_default();
+    let bad = |what: String| UsageError(format!("{}: {what}", file.display()));
+    let mut reader = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_path(file)
+        .map_err(|e| UsageError(format!("cannot read {}: {e}", file.display())))?;
+    let header: Vec<String> = reader
+        .headers()
+        .map_err(|e| bad(e.to_string()))?
+        .iter()
+        .map(str::to_string)
+        .collect();
     let index: Vec<usize> = columns
         .iter()
         .map(|c| {
-            header.iter().position(|h| h == c).ok_or_else(|| {
-                UsageError(format!(
-                    "{}: missing column `{c}` (header: `{}`)",
-                    file.display(),
-                    header.join(",")
-                ))
-            })
+            header
+                .iter()
+                .position(|h| h == c)
+                .ok_or_else(|| bad(format!("missing column `{c}` (header: `{}`)", header.join(","))))
         })
         .collect::<Result<_, _>>()?;
     let mut rows = Vec::new();
-    for (ln, line) in lines {
-        if line.trim().is_empty() {
-            continue;
-        }
-        let row: Vec<f64> = line
-            .split(',')
-            .map(|c| c.trim().parse::<f64>())
-            .collect::<Result<_, _>>()
-            .map_err(|_| UsageError(format!("{}:{}: not a row of numbers: `{line}`", file.display(), ln + 1)))?;
-        if row.len() != header.len() || !row.iter().all(|v| v.is_finite()) {
-            return Err(UsageError(format!(
-                "{}:{}: expected {} finite numbers, got `{line}`",
-                file.display(),
-                ln + 1,
-                header.len()
-            )));
-        }
+    for record in reader.records() {
+        let record = record.map_err(|e| bad(e.to_string()))?;
+        let line = record.position().map_or(0, |p| p.line());
+        let row: Vec<f64> = record
+            .iter()
+            .map(|c| c.parse::<f64>().ok().filter(|v| v.is_finite()))
+            .collect::<Option<_>>()
+            .filter(|r: &Vec<f64>| r.len() == header.len())
+            .ok_or_else(|| {
+                bad(format!(
+                    "line {line}: expected {} finite numbers, got `{}`",
+                    header.len(),
+                    record.iter().collect::<Vec<_>>().join(",")
+                ))
+            })?;
         rows.push(index.iter().map(|&i| row[i]).collect());
     }
     Ok(rows)

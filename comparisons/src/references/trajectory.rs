@@ -1,6 +1,8 @@
 //! Cached reference trajectories: a converged model's tip path over time.
 
+use super::tables::read_csv_columns;
 use crate::scenario::{Inputs, UsageError};
+use std::path::Path;
 use surgbench_core::Vec3;
 
 /// A cached reference trajectory `t,x,y,z` (s, m).
@@ -11,47 +13,24 @@ pub struct TipTrajectory {
 }
 
 impl TipTrajectory {
-    /// Parse CSV with a header naming `t,x,y,z`; errors name the line.
-    pub fn parse(file: &str, text: &str) -> Result<Self, UsageError> {
-        let mut lines = text
-            .lines()
-            .enumerate()
-            .filter(|(_, l)| !l.trim().is_empty() && !l.starts_with('#'));
-        let (_, header) = lines
-            .next()
-            .ok_or_else(|| UsageError(format!("{file}: empty reference")))?;
-        let names: Vec<&str> = header.split(',').map(str::trim).collect();
-        let col = |n: &str| {
-            names
-                .iter()
-                .position(|x| *x == n)
-                .ok_or_else(|| UsageError(format!("{file}: header has no `{n}` column")))
-        };
-        let cols = [col("t")?, col("x")?, col("y")?, col("z")?];
-        let mut samples: Vec<(f64, Vec3)> = Vec::new();
-        for (i, l) in lines {
-            let cells: Vec<&str> = l.split(',').map(str::trim).collect();
-            let mut v = [0.0; 4];
-            for (k, &c) in cols.iter().enumerate() {
-                v[k] = cells
-                    .get(c)
-                    .and_then(|s| s.parse::<f64>().ok())
-                    .filter(|x| x.is_finite())
-                    .ok_or_else(|| {
-                        UsageError(format!(
-                            "{file}: line {}, column `{}`: not a finite number",
-                            i + 1,
-                            names[c]
-                        ))
-                    })?;
+    /// Read a CSV whose header names `t,x,y,z` (s, m; `#` lines are
+    /// provenance); the times must increase and there must be a sample.
+    /// Errors name the file and line.
+    pub fn load(file: &Path) -> Result<Self, UsageError> {
+        let rows = read_csv_columns(file, &["t", "x", "y", "z"])?;
+        let mut samples: Vec<(f64, Vec3)> = Vec::with_capacity(rows.len());
+        for (i, r) in rows.iter().enumerate() {
+            if samples.last().is_some_and(|s| !(r[0] > s.0)) {
+                return Err(UsageError(format!(
+                    "{}: sample {}: time does not increase",
+                    file.display(),
+                    i + 1
+                )));
             }
-            if samples.last().is_some_and(|s| !(v[0] > s.0)) {
-                return Err(UsageError(format!("{file}: line {}: time does not increase", i + 1)));
-            }
-            samples.push((v[0], Vec3::new(v[1], v[2], v[3])));
+            samples.push((r[0], Vec3::new(r[1], r[2], r[3])));
         }
         if samples.is_empty() {
-            return Err(UsageError(format!("{file}: no samples")));
+            return Err(UsageError(format!("{}: no samples", file.display())));
         }
         Ok(Self { samples })
     }
@@ -71,8 +50,10 @@ impl TipTrajectory {
     }
 }
 
-/// Load `<datasets>/reference/<scenario>/tip_trajectory.csv` when present
-/// and the parameters are the defaults it was computed for.
+/// Load `<datasets>/reference/<scenario>/tip_trajectory.csv` when the
+/// parameters are the defaults it was computed for: `None` when they are
+/// not or when no file is there (the report shows `reference_available` 0);
+/// a file that is there but unreadable or malformed is an error naming it.
 pub fn cached_reference(scenario: &str, inputs: &Inputs) -> Result<Option<TipTrajectory>, UsageError> {
     if !inputs.params.overrides_string().is_empty() {
         return Ok(None);
@@ -82,8 +63,10 @@ pub fn cached_reference(scenario: &str, inputs: &Inputs) -> Result<Option<TipTra
         .join("reference")
         .join(scenario)
         .join("tip_trajectory.csv");
-    match std::fs::read_to_string(&path) {
-        Ok(text) => TipTrajectory::parse(&path.display().to_string(), &text).map(Some),
-        Err(_) => Ok(None),
+    match path.try_exists() {
+        Ok(true) => {}
+        Ok(false) => return Ok(None),
+        Err(e) => return Err(UsageError(format!("cannot read {}: {e}", path.display()))),
     }
+    TipTrajectory::load(&path).map(Some)
 }
