@@ -7,6 +7,7 @@
 
 pub mod batch;
 pub mod comparison;
+pub mod conformance;
 pub mod datasets;
 pub mod faulty;
 pub mod gate;
