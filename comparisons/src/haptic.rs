@@ -23,6 +23,7 @@ use std::fmt;
 use std::time::{Duration, Instant};
 use surgbench_core::haptic::{Feedback, HapticDevice};
 use surgbench_core::{DeviceCommand, Model};
+use surgbench_reports::Status;
 
 /// What one haptic loop measured.
 #[derive(Debug, Clone, Default)]
@@ -67,7 +68,11 @@ impl HapticReport {
             model: model.into(),
             scenario: scenario.into(),
             fidelity: fidelity.into(),
-            status: if self.stopped.is_some() { "stopped" } else { "ok" }.into(),
+            status: if self.stopped.is_some() {
+                Status::Stopped
+            } else {
+                Status::Ok
+            },
             reason: self.stopped.clone().unwrap_or_default(),
             rate_hz: self.rate_hz,
             duration_s: self.duration_s,

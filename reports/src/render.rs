@@ -10,7 +10,7 @@ use crate::figure::{
     Axis, BAD_RED, FAIL_GREY, Figure, LegendEntry, Line, Look, Marker, OK_GREEN, PALETTE, Panel, SeriesSpec, save,
 };
 use crate::format::{fmt_plain, fmt_sig, slug};
-use crate::{ReportError, ResultRow, RunInfo, fit_order, pareto_front, read_series};
+use crate::{End, ReportError, ResultRow, RunInfo, Status, fit_order, pareto_front, read_series};
 
 /// Size of single-panel plots (px): 770 px of chart + 330 px of legend.
 const PLOT_SIZE: (u32, u32) = (1100, 700);
@@ -307,12 +307,12 @@ fn pareto_figure(g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figure, S
     // Static scenes (every ok run ends settled or at its time limit): models
     // take different dt and step counts to the same equilibrium, so the fair
     // cost is the wall time to the solution, not the time per step.
-    let ok: Vec<&ResultRow> = g.rows.iter().copied().filter(|r| r.status == "ok").collect();
+    let ok: Vec<&ResultRow> = g.rows.iter().copied().filter(|r| r.status == Status::Ok).collect();
     // (Older results.csv files have no solve_wall_s: they keep ms/step.)
     let is_static = !ok.is_empty()
         && ok
             .iter()
-            .all(|r| (r.end == "settled" || r.end == "time-limit") && r.solve_wall_s.is_some());
+            .all(|r| matches!(r.end, End::Settled | End::TimeLimit) && r.solve_wall_s.is_some());
     let (cost, cost_name, cost_axis) = if is_static {
         (
             (|r: &ResultRow| r.solve_wall_s) as fn(&ResultRow) -> Option<f64>,
@@ -332,7 +332,7 @@ fn pareto_figure(g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figure, S
     let mut nonpos = Vec::new();
     for model in &g.models {
         let mut pts = Vec::new();
-        for r in g.model_rows(model).into_iter().filter(|r| r.status == "ok") {
+        for r in g.model_rows(model).into_iter().filter(|r| r.status == Status::Ok) {
             match (cost(r), g.err(r)) {
                 (Some(t), Some(e)) => {
                     if usable(Some(t)).is_some() && usable(Some(e)).is_some() {
@@ -475,14 +475,14 @@ fn convergence_figure(g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figu
         let ok: Vec<&ResultRow> = g
             .model_rows(model)
             .into_iter()
-            .filter(|r| r.status == "ok" && usable(g.err(r)).is_some())
+            .filter(|r| r.status == Status::Ok && usable(g.err(r)).is_some())
             .collect();
         own.push((model.clone(), choose_knob(&ok), ok));
     }
     let bad: Vec<String> = g
         .rows
         .iter()
-        .filter(|r| r.status == "ok")
+        .filter(|r| r.status == Status::Ok)
         .filter_map(|r| match g.err(r) {
             Some(e) if !(e.is_finite() && e > 0.0) => {
                 Some(format!("{} ({} = {})", run_label(r), g.metric, fmt_sig(e, 3)))
@@ -626,7 +626,7 @@ fn error_time_figure(dir: &Path, g: &Group, st: &Styles, sec: &mut Section) -> O
     let mut legend = Vec::new();
     for model in &g.models {
         let rows = g.model_rows(model);
-        let Some(r) = finest(rows.iter().copied().filter(|r| r.status == "ok")) else {
+        let Some(r) = finest(rows.iter().copied().filter(|r| r.status == Status::Ok)) else {
             continue;
         };
         if r.run_dir.trim().is_empty() {
@@ -702,18 +702,23 @@ fn error_time_figure(dir: &Path, g: &Group, st: &Styles, sec: &mut Section) -> O
 
 /// Stability map: per model, a marker per (resolution, dt) coloured by status.
 fn stability_figure(g: &Group, _st: &Styles, sec: &mut Section) -> Option<(Figure, String)> {
-    let runs: Vec<&ResultRow> = g.rows.iter().copied().filter(|r| r.status != "unsupported").collect();
+    let runs: Vec<&ResultRow> = g
+        .rows
+        .iter()
+        .copied()
+        .filter(|r| r.status != Status::Unsupported)
+        .collect();
     let knob = [Knob::Segments, Knob::MeshLevel]
         .into_iter()
         .find(|k| distinct(runs.iter().filter_map(|r| k.resolution(r))) >= 2)?;
     if distinct(runs.iter().filter_map(|r| r.dt)) < 2 {
         return None;
     }
-    let kinds: [(&str, RGBLook); 4] = [
-        ("ok", (OK_GREEN, Marker::Circle)),
-        ("timeout", (FAIL_GREY, Marker::TriangleUp)),
-        ("failed", (FAIL_GREY, Marker::Square)),
-        ("unstable", (BAD_RED, Marker::Cross)),
+    let kinds: [(Status, RGBLook); 4] = [
+        (Status::Ok, (OK_GREEN, Marker::Circle)),
+        (Status::Timeout, (FAIL_GREY, Marker::TriangleUp)),
+        (Status::Failed, (FAIL_GREY, Marker::Square)),
+        (Status::Unstable, (BAD_RED, Marker::Cross)),
     ];
     let mut panels = Vec::new();
     let mut present = BTreeSet::new();
@@ -770,7 +775,7 @@ fn stability_figure(g: &Group, _st: &Styles, sec: &mut Section) -> Option<(Figur
         }
         for c in &cells {
             if !kinds.iter().any(|k| k.0 == c.2.status) {
-                other_status.push(format!("{} (status {:?})", run_label(c.2), c.2.status));
+                other_status.push(format!("{} (status {:?})", run_label(c.2), c.2.status.as_str()));
             }
         }
         let mut xt: Vec<f64> = cells.iter().map(|c| c.0).collect();
@@ -804,13 +809,13 @@ fn stability_figure(g: &Group, _st: &Styles, sec: &mut Section) -> Option<(Figur
     if panels.is_empty() {
         return None;
     }
-    if g.rows.iter().any(|r| r.status == "unsupported") {
+    if g.rows.iter().any(|r| r.status == Status::Unsupported) {
         sec.notes
             .push("Stability map: unsupported runs are not drawn (see the table).".into());
     }
     let legend = kinds
         .iter()
-        .filter(|k| present.contains(k.0))
+        .filter(|k| present.contains(&k.0))
         .map(|(status, (color, m))| LegendEntry {
             look: Look {
                 color: *color,
@@ -844,7 +849,7 @@ fn status_counts<'a>(rows: impl Iterator<Item = &'a ResultRow>) -> String {
     let mut c: BTreeMap<&str, usize> = BTreeMap::new();
     let mut n = 0;
     for r in rows {
-        *c.entry(if r.status.is_empty() {
+        *c.entry(if r.status == Status::Unset {
             "(no status)"
         } else {
             r.status.as_str()
@@ -863,7 +868,7 @@ fn status_counts<'a>(rows: impl Iterator<Item = &'a ResultRow>) -> String {
 fn reason_text(r: &ResultRow) -> String {
     let reason = r.reason.trim();
     let reason = if reason.is_empty() { "(no reason given)" } else { reason };
-    format!("{}: {}", or_unknown(&r.status), reason)
+    format!("{}: {}", or_unknown(r.status.as_str()), reason)
 }
 
 fn reason_only(r: &ResultRow) -> String {
@@ -892,7 +897,7 @@ fn stable_text(r: &ResultRow) -> String {
 }
 
 fn scenario_table(g: &Group) -> Block {
-    let ok: Vec<&ResultRow> = g.rows.iter().copied().filter(|r| r.status == "ok").collect();
+    let ok: Vec<&ResultRow> = g.rows.iter().copied().filter(|r| r.status == Status::Ok).collect();
     let best_err = ok.iter().filter_map(|r| usable(g.err(r))).fold(f64::INFINITY, f64::min);
     let best_t = ok
         .iter()
@@ -916,7 +921,7 @@ fn scenario_table(g: &Group) -> Block {
     ];
     let mut rows = Vec::new();
     for r in &g.rows {
-        let is_ok = r.status == "ok";
+        let is_ok = r.status == Status::Ok;
         let err_cell = if is_ok {
             match g.err(r) {
                 Some(e) => Cell {
@@ -951,7 +956,7 @@ fn scenario_table(g: &Group) -> Block {
                 r.fidelity.as_str()
             }),
             Cell {
-                text: or_unknown(&r.status).to_string(),
+                text: or_unknown(r.status.as_str()).to_string(),
                 bold: false,
                 warn: !is_ok,
             },
@@ -961,7 +966,7 @@ fn scenario_table(g: &Group) -> Block {
             Cell::plain(num(r.real_time_factor)),
             Cell::plain(iters),
             Cell::plain(stable_text(r)),
-            Cell::plain(if r.end.is_empty() { "—" } else { r.end.as_str() }),
+            Cell::plain(if r.end == End::Unset { "—" } else { r.end.as_str() }),
         ]);
     }
     Block::Table { header, rows }
@@ -977,7 +982,7 @@ fn summary_table(groups: &[Group], st: &Styles) -> Block {
             let mr = g.model_rows(model);
             let cell = match finest(mr.iter().copied()) {
                 None => Cell::plain("not run"),
-                Some(r) if r.status == "ok" => {
+                Some(r) if r.status == Status::Ok => {
                     let e = g
                         .err(r)
                         .map(|e| fmt_sig(e, 3))
