@@ -349,3 +349,58 @@ impl RunSummary {
         f.flush()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The words are the files' words, both ways; an unknown word is an error.
+    #[test]
+    fn words_round_trip() {
+        for s in Status::ALL {
+            assert_eq!(s.as_str().parse::<Status>().unwrap(), *s);
+        }
+        for e in End::ALL {
+            assert_eq!(e.to_string().parse::<End>().unwrap(), *e);
+        }
+        assert_eq!(End::TimeLimit.to_string(), "time-limit");
+        assert_eq!(serde_json::to_string(&Status::Unset).unwrap(), "\"\"");
+        assert!("Ok".parse::<Status>().is_err());
+    }
+
+    /// The runner's watchdog messages read back as their kinds.
+    #[test]
+    fn trips_are_read_from_the_messages() {
+        for (m, t) in [
+            ("", Trip::None),
+            ("non-finite state", Trip::NonFinite),
+            ("node left the scene: |x| = 3e0 m > 1e0 m", Trip::LeftScene),
+            ("stretch 6.000e-2 > 0.05", Trip::Stretch),
+            (
+                "energy grew by 1e0 J beyond the hand's work (0e0 J) > 1e-3 J",
+                Trip::Energy,
+            ),
+            ("penetration 1e-3 m > 5e-4 m", Trip::Penetration),
+            ("Newton did not converge", Trip::ModelError),
+        ] {
+            assert_eq!(Trip::of_message(m), t, "{m:?}");
+        }
+    }
+
+    /// A whole step count is written as an integer, as `run-one` always has.
+    #[test]
+    fn steps_are_whole_numbers_in_json() {
+        let o = Outcome {
+            steps: Some(12.0),
+            sim_time_s: Some(0.0),
+            ..Outcome::default()
+        };
+        let text = serde_json::to_string(&o).unwrap();
+        assert!(
+            text.contains("\"steps\":12,") && text.contains("\"sim_time_s\":0.0"),
+            "{text}"
+        );
+        let back: Outcome = serde_json::from_str(&text).unwrap();
+        assert_eq!(back, o);
+    }
+}
