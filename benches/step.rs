@@ -5,22 +5,11 @@
 
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use surgbench_comparisons::gate::{self, Workload};
-use surgbench_comparisons::registry;
-use surgbench_comparisons::scenario::Params;
-use surgbench_core::{Fidelity, Model};
+use surgbench_core::Model;
 
 fn build(w: &Workload) -> (Box<dyn Model>, surgbench_core::Scene) {
-    let sc = registry::scenario(&w.scenario).expect("scenario");
-    let f = registry::model(&w.model).expect("model");
-    let overrides: Vec<(String, f64)> = w.params.iter().map(|(k, v)| (k.clone(), *v)).collect();
-    let p = Params::resolve(sc.id(), sc.params(), &overrides).expect("params");
-    let mut fid = Fidelity::default();
-    for (k, v) in &w.fidelity {
-        fid.set(k, *v).expect("fidelity");
-    }
-    let run = sc.instantiate_at(&p, &fid).expect("scenario instance");
-    let fid = f.default_fidelity(run.scene()).merged(&fid);
-    (f.build(run.scene(), &fid).expect("build"), run.scene().clone())
+    let run = w.resolve().expect("workload");
+    (run.build().expect("build"), run.scene().clone())
 }
 
 fn bench(c: &mut Criterion) {

@@ -4,7 +4,7 @@
 //! (unknown scenario/model/parameter, out-of-range value, malformed file);
 //! on exit 2 nothing is written.
 
-use clap::{Parser, Subcommand};
+use clap::{Args, Parser, Subcommand};
 
 /// `println!` that ignores a closed stdout (e.g. piped into `head`): output
 /// for people must never turn into a panic.
@@ -19,10 +19,13 @@ use std::process::ExitCode;
 use surgbench_comparisons::batch::{self, BatchError, BatchOptions};
 use surgbench_comparisons::comparison::Comparison;
 use surgbench_comparisons::gate;
-use surgbench_comparisons::runner::{self, RunOptions};
-use surgbench_comparisons::scenario::{Params, parse_overrides};
+use surgbench_comparisons::haptic::run_haptic_loop;
+use surgbench_comparisons::outdir;
+use surgbench_comparisons::resolve::ResolvedRun;
+use surgbench_comparisons::runner::{RunOptions, RunSummary};
+use surgbench_comparisons::scenario::parse_overrides;
 use surgbench_comparisons::{UsageError, registry};
-use surgbench_core::Fidelity;
+use surgbench_reports::Status;
 
 #[derive(Parser)]
 #[command(
@@ -43,57 +46,10 @@ enum Cmd {
     /// List scenarios (with parameters and defaults), models (with capabilities) and comparisons.
     List,
     /// Run a comparison (default: comparisons/standard.toml) and write a report.
-    Run {
-        /// Comparison name (comparisons/NAME.toml) or path to a .toml file.
-        #[arg(default_value = "standard")]
-        comparison: String,
-        /// Only these models (comma-separated ids).
-        #[arg(long, value_delimiter = ',')]
-        models: Option<Vec<String>>,
-        /// Smaller sweeps, one repeat: a report in a minute or two.
-        #[arg(long)]
-        quick: bool,
-        /// Report folder (default: reports/out/latest).
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// Threads per run (RAYON_NUM_THREADS); runs themselves go one at a time.
-        #[arg(long, default_value_t = 1)]
-        threads: usize,
-        /// Repeats per run (overrides the comparison; timings pooled).
-        #[arg(long)]
-        repeats: Option<usize>,
-        /// Wall-clock limit per run in seconds (overrides the comparison).
-        #[arg(long)]
-        timeout: Option<f64>,
-        /// No progress bar.
-        #[arg(long)]
-        quiet: bool,
-    },
+    Run(RunArgs),
     /// Run one scenario with one model at one fidelity; writes summary.json,
     /// observables.csv and final_state.csv into --out.
-    RunOne {
-        /// Scenario id (see `surgbench list`).
-        #[arg(long)]
-        scenario: String,
-        /// Model id (see `surgbench list`).
-        #[arg(long)]
-        model: String,
-        /// Scenario parameter override, NAME=VALUE in SI units (repeatable).
-        #[arg(long = "param", value_name = "NAME=VALUE")]
-        params: Vec<String>,
-        /// Fidelity knob, KEY=VALUE: segments, mesh_level, dt, iterations or a model extra (repeatable).
-        #[arg(long = "fidelity", value_name = "KEY=VALUE")]
-        fidelity: Vec<String>,
-        /// Output folder (replaced atomically).
-        #[arg(long)]
-        out: PathBuf,
-        /// Repeats (timings pooled; results must be bit-identical).
-        #[arg(long, default_value_t = 1)]
-        repeats: usize,
-        /// Print nothing on success.
-        #[arg(long)]
-        quiet: bool,
-    },
+    RunOne(RunOneArgs),
     /// Re-render plots and pages of a report folder from its results.csv.
     Report {
         /// Report folder holding results.csv.
@@ -101,63 +57,143 @@ enum Cmd {
     },
     /// CI performance gate: instructions per step under valgrind against
     /// benches/gate-baseline.json; fails past the margin in benches/gate.toml.
-    Gate {
-        /// Record the current counts as the new baseline (on purpose!).
-        #[arg(long)]
-        update: bool,
-        /// Gate configuration.
-        #[arg(long, default_value = "benches/gate.toml")]
-        config: PathBuf,
-        /// Baseline file.
-        #[arg(long, default_value = "benches/gate-baseline.json")]
-        baseline: PathBuf,
-    },
+    Gate(GateArgs),
     /// Drive a model from a haptic device at a fixed rate against the wall
     /// clock (default 1 kHz) and report deadline misses, latency and jitter:
     /// can this model drive a haptic device?
-    Haptic {
-        /// Model id.
-        #[arg(long)]
-        model: String,
-        /// Scenario id (its control timeline drives the device unless --replay is given).
-        #[arg(long)]
-        scenario: String,
-        /// Scenario parameter override, NAME=VALUE (repeatable).
-        #[arg(long = "param", value_name = "NAME=VALUE")]
-        params: Vec<String>,
-        /// Fidelity knob, KEY=VALUE (repeatable).
-        #[arg(long = "fidelity", value_name = "KEY=VALUE")]
-        fidelity: Vec<String>,
-        /// Loop rate (Hz).
-        #[arg(long, default_value_t = 1000.0)]
-        rate: f64,
-        /// Wall-clock duration of the loop (s).
-        #[arg(long, default_value_t = 10.0)]
-        duration: f64,
-        /// Replay a recorded session (CSV: t,insertion,rotation) instead of the scenario's timeline.
-        #[arg(long)]
-        replay: Option<PathBuf>,
-        /// Write what the device rendered (force, torque) to this CSV (with --replay).
-        #[arg(long)]
-        record: Option<PathBuf>,
-        /// Also write the measured numbers as a one-row `haptic.csv` to this file.
-        #[arg(long)]
-        csv: Option<PathBuf>,
-    },
+    Haptic(HapticArgs),
     /// (internal) The workload the gate counts under valgrind.
     #[command(hide = true)]
-    GateWorkload {
-        #[arg(long)]
-        model: String,
-        #[arg(long)]
-        scenario: String,
-        #[arg(long = "param")]
-        params: Vec<String>,
-        #[arg(long = "fidelity")]
-        fidelity: Vec<String>,
-        #[arg(long)]
-        steps: usize,
-    },
+    GateWorkload(GateWorkloadArgs),
+}
+
+/// `surgbench run`.
+#[derive(Args)]
+struct RunArgs {
+    /// Comparison name (comparisons/NAME.toml) or path to a .toml file.
+    #[arg(default_value = "standard")]
+    comparison: String,
+    /// Only these models (comma-separated ids).
+    #[arg(long, value_delimiter = ',')]
+    models: Option<Vec<String>>,
+    /// Smaller sweeps, one repeat: a report in a minute or two.
+    #[arg(long)]
+    quick: bool,
+    /// Report folder (default: reports/out/latest), replaced as a whole: an
+    /// earlier surgbench report or an empty folder (any other folder only
+    /// with --force; a file never).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Replace --out even when it is a non-empty folder that is not a surgbench report.
+    #[arg(long)]
+    force: bool,
+    /// Threads per run (RAYON_NUM_THREADS); runs themselves go one at a time.
+    #[arg(long, default_value_t = 1)]
+    threads: usize,
+    /// Repeats per run (overrides the comparison; timings pooled).
+    #[arg(long)]
+    repeats: Option<usize>,
+    /// Wall-clock limit per run in seconds (overrides the comparison).
+    #[arg(long)]
+    timeout: Option<f64>,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+}
+
+/// The scenario x model x parameters x fidelity a single-run command takes.
+#[derive(Args)]
+struct RunSpec {
+    /// Scenario id (see `surgbench list`).
+    #[arg(long)]
+    scenario: String,
+    /// Model id (see `surgbench list`).
+    #[arg(long)]
+    model: String,
+    /// Scenario parameter override, NAME=VALUE in SI units (repeatable).
+    #[arg(long = "param", value_name = "NAME=VALUE")]
+    params: Vec<String>,
+    /// Fidelity knob, KEY=VALUE: segments, mesh_level, dt, iterations or a model extra (repeatable).
+    #[arg(long = "fidelity", value_name = "KEY=VALUE")]
+    fidelity: Vec<String>,
+}
+
+impl RunSpec {
+    /// Resolve and validate the run once.
+    fn resolve(&self) -> Result<ResolvedRun, UsageError> {
+        ResolvedRun::from_pairs(
+            &self.scenario,
+            &self.model,
+            &parse_overrides(&self.params)?,
+            &self.fidelity,
+        )
+    }
+}
+
+/// `surgbench run-one`.
+#[derive(Args)]
+struct RunOneArgs {
+    #[command(flatten)]
+    spec: RunSpec,
+    /// Output folder, replaced as a whole: an earlier surgbench run folder or
+    /// an empty folder (any other folder only with --force; a file never).
+    #[arg(long)]
+    out: PathBuf,
+    /// Replace --out even when it is a non-empty folder that is not a surgbench run.
+    #[arg(long)]
+    force: bool,
+    /// Repeats (timings pooled; results must be bit-identical).
+    #[arg(long, default_value_t = 1)]
+    repeats: usize,
+    /// Print nothing on success.
+    #[arg(long)]
+    quiet: bool,
+}
+
+/// `surgbench gate`.
+#[derive(Args)]
+struct GateArgs {
+    /// Record the current counts as the new baseline (on purpose!).
+    #[arg(long)]
+    update: bool,
+    /// Gate configuration.
+    #[arg(long, default_value = "benches/gate.toml")]
+    config: PathBuf,
+    /// Baseline file.
+    #[arg(long, default_value = "benches/gate-baseline.json")]
+    baseline: PathBuf,
+}
+
+/// `surgbench haptic`.
+#[derive(Args)]
+struct HapticArgs {
+    #[command(flatten)]
+    spec: RunSpec,
+    /// Loop rate (Hz).
+    #[arg(long, default_value_t = 1000.0)]
+    rate: f64,
+    /// Wall-clock duration of the loop (s).
+    #[arg(long, default_value_t = 10.0)]
+    duration: f64,
+    /// Replay a recorded session (CSV: t,insertion,rotation) instead of the scenario's timeline.
+    #[arg(long)]
+    replay: Option<PathBuf>,
+    /// Write what the device rendered (force, torque) to this CSV (with --replay).
+    #[arg(long)]
+    record: Option<PathBuf>,
+    /// Also write the measured numbers as a one-row `haptic.csv` to this file.
+    #[arg(long)]
+    csv: Option<PathBuf>,
+}
+
+/// `surgbench gate-workload`.
+#[derive(Args)]
+struct GateWorkloadArgs {
+    #[command(flatten)]
+    spec: RunSpec,
+    /// Steps to take after the build.
+    #[arg(long)]
+    steps: usize,
 }
 
 /// Failure kinds mapped to exit codes.
@@ -252,288 +288,18 @@ fn list() {
     }
 }
 
-fn run_one(
-    scenario: &str,
-    model: &str,
-    params: &[String],
-    fidelity: &[String],
-    out: &Path,
-    repeats: usize,
-    quiet: bool,
-) -> Result<(), Failure> {
-    let sc = registry::scenario(scenario)?;
-    let factory = registry::model(model)?;
-    let overrides = parse_overrides(params)?;
-    let params = Params::resolve(sc.id(), sc.params(), &overrides)?;
-    let fid = Fidelity::parse_pairs(fidelity).map_err(|e| Failure::Usage(e.0))?;
-    fid.check_extras(factory.fidelity_keys())
-        .map_err(|e| Failure::Usage(format!("model `{model}`: {}", e.0)))?;
-    if repeats == 0 {
-        return Err(Failure::Usage("--repeats must be >= 1".into()));
-    }
-    let run = sc.instantiate_at(&params, &fid)?;
-    let opts = RunOptions {
-        repeats,
-        ..Default::default()
-    };
-    let summary = runner::run_single(sc, &params, &run, factory, &fid, &opts)?;
-    let tmp =
-        batch::temp_sibling(out).map_err(|e| Failure::Runtime(format!("cannot create {}: {e}", out.display())))?;
-    runner::write_run_files(&tmp, &summary).map_err(|e| Failure::Runtime(format!("cannot write run files: {e}")))?;
-    batch::replace_dir(&tmp, out)
-        .map_err(|e| Failure::Runtime(format!("cannot move run into {}: {e}", out.display())))?;
-    if !quiet {
-        say!(
-            "{} / {} [{}]: {}{}",
-            summary.scenario,
-            summary.model,
-            summary.fidelity_string,
-            summary.status,
-            if summary.reason.is_empty() {
-                String::new()
-            } else {
-                format!(" ({})", summary.reason)
-            }
-        );
-        if let Some(ms) = summary.ms_per_step_median {
-            say!(
-                "  {} steps, {:.4} s simulated, {ms:.4} ms/step median, end: {}",
-                summary.steps,
-                summary.sim_time_s,
-                summary.end
-            );
-        }
-        for (k, v) in &summary.errors {
-            say!("  {k:<34} {v:.6e}");
-        }
-        say!("  written to {}", out.display());
-    }
-    Ok(())
-}
-
 fn main() -> ExitCode {
-    let cli = Cli::parse();
-    let res: Result<(), Failure> = match cli.cmd {
+    let res = match Cli::parse().cmd {
         Cmd::List => {
             list();
             Ok(())
         }
-        Cmd::Run {
-            comparison,
-            models,
-            quick,
-            out,
-            threads,
-            repeats,
-            timeout,
-            quiet,
-        } => (|| {
-            if threads == 0 {
-                return Err(Failure::Usage("--threads must be >= 1".into()));
-            }
-            if repeats == Some(0) {
-                return Err(Failure::Usage("--repeats must be >= 1".into()));
-            }
-            if let Some(t) = timeout
-                && !(t > 0.0)
-            {
-                return Err(Failure::Usage(format!("--timeout must be > 0 s, got {t}")));
-            }
-            let path = find_comparison(&comparison)?;
-            let c = Comparison::load(&path)?;
-            let out = out.unwrap_or_else(|| project_root().join("reports/out/latest"));
-            let exe =
-                std::env::current_exe().map_err(|e| Failure::Runtime(format!("cannot find own executable: {e}")))?;
-            let opts = BatchOptions {
-                quick,
-                models,
-                out: out.clone(),
-                threads,
-                repeats,
-                timeout_s: timeout,
-                quiet,
-                exe,
-                command: std::env::args().collect::<Vec<_>>().join(" "),
-            };
-            let rows = batch::run_comparison(&c, &opts).map_err(|e| match e {
-                BatchError::Usage(u) => Failure::Usage(u.0),
-                BatchError::Io(s) => Failure::Runtime(s),
-            })?;
-            if !quiet {
-                let count = |s: &str| rows.iter().filter(|r| r.status == s).count();
-                say!(
-                    "{} runs: {} ok, {} unstable, {} unsupported, {} failed, {} timeout",
-                    rows.len(),
-                    count("ok"),
-                    count("unstable"),
-                    count("unsupported"),
-                    count("failed"),
-                    count("timeout")
-                );
-                say!("report: {}", out.join("index.html").display());
-            }
-            Ok(())
-        })(),
-        Cmd::RunOne {
-            scenario,
-            model,
-            params,
-            fidelity,
-            out,
-            repeats,
-            quiet,
-        } => run_one(&scenario, &model, &params, &fidelity, &out, repeats, quiet),
-        Cmd::Report { dir } => (|| {
-            let csv = dir.join("results.csv");
-            if !csv.is_file() {
-                return Err(Failure::Usage(format!("{} has no results.csv", dir.display())));
-            }
-            let files = surgbench_reports::render_dir(&dir).map_err(|e| match e {
-                surgbench_reports::ReportError::Io { .. } | surgbench_reports::ReportError::Plot { .. } => {
-                    Failure::Runtime(e.to_string())
-                }
-                _ => Failure::Usage(e.to_string()),
-            })?;
-            say!("rendered {} files into {}", files.len(), dir.display());
-            Ok(())
-        })(),
-        Cmd::Gate {
-            update,
-            config,
-            baseline,
-        } => (|| {
-            let cfg = gate::load_config(&config)?;
-            let exe =
-                std::env::current_exe().map_err(|e| Failure::Runtime(format!("cannot find own executable: {e}")))?;
-            let verdicts = gate::run_gate(&exe, &cfg, &baseline, update).map_err(Failure::Runtime)?;
-            say!(
-                "{:<60} {:>16} {:>16} {:>8}",
-                "workload",
-                "instr/step",
-                "baseline",
-                "change"
-            );
-            let mut failed = 0;
-            for v in &verdicts {
-                let (b, ch) = match v.baseline {
-                    Some(b) => (format!("{b:.0}"), format!("{:+.2}%", 100.0 * (v.measured / b - 1.0))),
-                    None => ("none".into(), "new".into()),
-                };
-                say!(
-                    "{:<60} {:>16.0} {:>16} {:>8} {}",
-                    v.key,
-                    v.measured,
-                    b,
-                    ch,
-                    if v.pass { "ok" } else { "FAIL" }
-                );
-                failed += usize::from(!v.pass);
-            }
-            if update {
-                say!("baseline written to {}", baseline.display());
-                Ok(())
-            } else if failed > 0 {
-                Err(Failure::Runtime(format!(
-                    "{failed} workload(s) beyond the {:.0}% margin or without a baseline; if the change is intended, refresh with `surgbench gate --update`",
-                    cfg.margin * 100.0
-                )))
-            } else {
-                say!(
-                    "gate passed ({} workloads, margin {:.0}%)",
-                    verdicts.len(),
-                    cfg.margin * 100.0
-                );
-                Ok(())
-            }
-        })(),
-        Cmd::Haptic {
-            model,
-            scenario,
-            params,
-            fidelity,
-            rate,
-            duration,
-            replay,
-            record,
-            csv,
-        } => (|| {
-            if !(rate > 0.0 && rate.is_finite() && duration > 0.0 && duration.is_finite()) {
-                return Err(Failure::Usage(format!(
-                    "--rate and --duration must be > 0, got {rate} Hz, {duration} s"
-                )));
-            }
-            if record.is_some() && replay.is_none() {
-                return Err(Failure::Usage("--record needs --replay".into()));
-            }
-            let sc = registry::scenario(&scenario)?;
-            let factory = registry::model(&model)?;
-            let overrides = parse_overrides(&params)?;
-            let params = Params::resolve(sc.id(), sc.params(), &overrides)?;
-            let fid = Fidelity::parse_pairs(&fidelity).map_err(|e| Failure::Usage(e.0))?;
-            fid.check_extras(factory.fidelity_keys())
-                .map_err(|e| Failure::Usage(format!("model `{model}`: {}", e.0)))?;
-            let run = sc.instantiate_at(&params, &fid)?;
-            factory
-                .check(run.scene())
-                .map_err(|u| Failure::Usage(format!("{model} cannot run {scenario}: {}", u.reason)))?;
-            let full = factory.default_fidelity(run.scene()).merged(&fid);
-            let m = factory
-                .build(run.scene(), &full)
-                .map_err(|e| Failure::Usage(e.to_string()))?;
-            let report = match &replay {
-                Some(path) => {
-                    let session =
-                        surgbench_core::haptic::Session::load(path).map_err(|e| Failure::Usage(e.to_string()))?;
-                    let mut dev = surgbench_core::haptic::ReplayDevice::new(session);
-                    let r = surgbench_comparisons::haptic::run_haptic_loop(m, &mut dev, rate, duration)?;
-                    if let Some(out) = &record {
-                        dev.write_csv(out)
-                            .map_err(|e| Failure::Runtime(format!("cannot write {}: {e}", out.display())))?;
-                    }
-                    r
-                }
-                None => {
-                    let mut dev = surgbench_core::haptic::ScriptedDevice::new(run.scene().control.clone());
-                    surgbench_comparisons::haptic::run_haptic_loop(m, &mut dev, rate, duration)?
-                }
-            };
-            say!("{model} on {scenario} [{full}] at {rate} Hz for {duration} s");
-            say!("{report}");
-            if let Some(path) = &csv {
-                let row = report.row(&model, &scenario, &full.to_string());
-                let tmp = path.with_extension("csv.tmp");
-                surgbench_reports::write_haptic_csv(&tmp, &[row])
-                    .and_then(|_| {
-                        std::fs::rename(&tmp, path).map_err(|e| surgbench_reports::ReportError::Io {
-                            path: path.clone(),
-                            source: e,
-                        })
-                    })
-                    .map_err(|e| Failure::Runtime(e.to_string()))?;
-            }
-            Ok(())
-        })(),
-        Cmd::GateWorkload {
-            model,
-            scenario,
-            params,
-            fidelity,
-            steps,
-        } => (|| {
-            let w = gate::Workload {
-                model,
-                scenario,
-                params: parse_overrides(&params)?.into_iter().collect(),
-                fidelity: Fidelity::parse_pairs(&fidelity)
-                    .map_err(|e| Failure::Usage(e.0))?
-                    .pairs()
-                    .into_iter()
-                    .collect(),
-                steps,
-            };
-            gate::run_workload(&w, steps)?;
-            Ok(())
-        })(),
+        Cmd::Run(a) => cmd_run(a),
+        Cmd::RunOne(a) => cmd_run_one(&a),
+        Cmd::Report { dir } => cmd_report(&dir),
+        Cmd::Gate(a) => cmd_gate(&a),
+        Cmd::Haptic(a) => cmd_haptic(&a),
+        Cmd::GateWorkload(a) => cmd_gate_workload(&a),
     };
     match res {
         Ok(()) => ExitCode::SUCCESS,
@@ -546,4 +312,236 @@ fn main() -> ExitCode {
             ExitCode::from(1)
         }
     }
+}
+
+/// This executable, for the child processes of a batch or the gate.
+fn own_exe() -> Result<PathBuf, Failure> {
+    std::env::current_exe().map_err(|e| Failure::Runtime(format!("cannot find own executable: {e}")))
+}
+
+/// `surgbench run`: a comparison's batch, then a one-line count.
+fn cmd_run(a: RunArgs) -> Result<(), Failure> {
+    if a.threads == 0 {
+        return Err(Failure::Usage("--threads must be >= 1".into()));
+    }
+    if a.repeats == Some(0) {
+        return Err(Failure::Usage("--repeats must be >= 1".into()));
+    }
+    if let Some(t) = a.timeout
+        && !(t > 0.0)
+    {
+        return Err(Failure::Usage(format!("--timeout must be > 0 s, got {t}")));
+    }
+    let c = Comparison::load(&find_comparison(&a.comparison)?)?;
+    let out = a.out.unwrap_or_else(|| project_root().join("reports/out/latest"));
+    let opts = BatchOptions {
+        quick: a.quick,
+        models: a.models,
+        out: out.clone(),
+        force: a.force,
+        threads: a.threads,
+        repeats: a.repeats,
+        timeout_s: a.timeout,
+        quiet: a.quiet,
+        exe: own_exe()?,
+        command: std::env::args().collect::<Vec<_>>().join(" "),
+    };
+    let rows = batch::run_comparison(&c, &opts).map_err(|e| match e {
+        BatchError::Usage(u) => Failure::Usage(u.0),
+        BatchError::Io(s) => Failure::Runtime(s),
+    })?;
+    if !a.quiet {
+        let count = |s: Status| rows.iter().filter(|r| r.status == s).count();
+        say!(
+            "{} runs: {} ok, {} unstable, {} unsupported, {} failed, {} timeout",
+            rows.len(),
+            count(Status::Ok),
+            count(Status::Unstable),
+            count(Status::Unsupported),
+            count(Status::Failed),
+            count(Status::Timeout)
+        );
+        say!("report: {}", out.join("index.html").display());
+    }
+    Ok(())
+}
+
+/// `surgbench run-one`: one run, its files written to a temporary sibling
+/// of `--out` and moved into place.
+fn cmd_run_one(a: &RunOneArgs) -> Result<(), Failure> {
+    outdir::check_replaceable(&a.out, a.force)?;
+    let resolved = a.spec.resolve()?;
+    if a.repeats == 0 {
+        return Err(Failure::Usage("--repeats must be >= 1".into()));
+    }
+    let opts = RunOptions {
+        repeats: a.repeats,
+        ..Default::default()
+    };
+    let summary = resolved.run(&opts)?;
+    let out = &a.out;
+    let tmp =
+        batch::temp_sibling(out).map_err(|e| Failure::Runtime(format!("cannot create {}: {e}", out.display())))?;
+    summary
+        .write_files(&tmp)
+        .and_then(|()| outdir::write_marker(&tmp))
+        .map_err(|e| Failure::Runtime(format!("cannot write run files: {e}")))?;
+    batch::replace_dir(&tmp, out)
+        .map_err(|e| Failure::Runtime(format!("cannot move run into {}: {e}", out.display())))?;
+    if !a.quiet {
+        print_run(&summary, out);
+    }
+    Ok(())
+}
+
+/// What `run-one` tells a person about a run.
+fn print_run(summary: &RunSummary, out: &Path) {
+    say!(
+        "{} / {} [{}]: {}{}",
+        summary.scenario,
+        summary.model,
+        summary.fidelity_string,
+        summary.status,
+        if summary.reason.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", summary.reason)
+        }
+    );
+    if let Some(ms) = summary.ms_per_step_median {
+        say!(
+            "  {} steps, {:.4} s simulated, {ms:.4} ms/step median, end: {}",
+            summary.steps.unwrap_or(0.0),
+            summary.sim_time_s.unwrap_or(0.0),
+            summary.end
+        );
+    }
+    for (k, v) in &summary.errors {
+        say!("  {k:<34} {v:.6e}");
+    }
+    say!("  written to {}", out.display());
+}
+
+/// `surgbench report`: re-render a report folder from its results.csv.
+fn cmd_report(dir: &Path) -> Result<(), Failure> {
+    let csv = dir.join("results.csv");
+    if !csv.is_file() {
+        return Err(Failure::Usage(format!("{} has no results.csv", dir.display())));
+    }
+    let files = surgbench_reports::render_dir(dir).map_err(|e| match e {
+        surgbench_reports::ReportError::Io { .. } | surgbench_reports::ReportError::Plot { .. } => {
+            Failure::Runtime(e.to_string())
+        }
+        _ => Failure::Usage(e.to_string()),
+    })?;
+    say!("rendered {} files into {}", files.len(), dir.display());
+    Ok(())
+}
+
+/// `surgbench gate`: count every workload, print the table, judge.
+fn cmd_gate(a: &GateArgs) -> Result<(), Failure> {
+    let cfg = gate::load_config(&a.config)?;
+    let verdicts = gate::run_gate(&own_exe()?, &cfg, &a.baseline, a.update).map_err(Failure::Runtime)?;
+    say!(
+        "{:<60} {:>16} {:>16} {:>8}",
+        "workload",
+        "instr/step",
+        "baseline",
+        "change"
+    );
+    for v in &verdicts {
+        let (b, ch) = match v.baseline {
+            Some(b) => (format!("{b:.0}"), format!("{:+.2}%", 100.0 * (v.measured / b - 1.0))),
+            None => ("none".into(), "new".into()),
+        };
+        say!(
+            "{:<60} {:>16.0} {:>16} {:>8} {}",
+            v.key,
+            v.measured,
+            b,
+            ch,
+            if v.pass { "ok" } else { "FAIL" }
+        );
+    }
+    let failed = verdicts.iter().filter(|v| !v.pass).count();
+    if a.update {
+        say!("baseline written to {}", a.baseline.display());
+        Ok(())
+    } else if failed > 0 {
+        Err(Failure::Runtime(format!(
+            "{failed} workload(s) beyond the {:.0}% margin or without a baseline; if the change is intended, refresh with `surgbench gate --update`",
+            cfg.margin * 100.0
+        )))
+    } else {
+        say!(
+            "gate passed ({} workloads, margin {:.0}%)",
+            verdicts.len(),
+            cfg.margin * 100.0
+        );
+        Ok(())
+    }
+}
+
+/// `surgbench haptic`: one fixed-rate loop, printed and optionally written.
+fn cmd_haptic(a: &HapticArgs) -> Result<(), Failure> {
+    let (rate, duration) = (a.rate, a.duration);
+    if !(rate > 0.0 && rate.is_finite() && duration > 0.0 && duration.is_finite()) {
+        return Err(Failure::Usage(format!(
+            "--rate and --duration must be > 0, got {rate} Hz, {duration} s"
+        )));
+    }
+    if a.record.is_some() && a.replay.is_none() {
+        return Err(Failure::Usage("--record needs --replay".into()));
+    }
+    let resolved = a.spec.resolve()?;
+    let m = resolved.build()?;
+    let report = match &a.replay {
+        Some(path) => {
+            let session = surgbench_core::haptic::Session::load(path).map_err(|e| Failure::Usage(e.to_string()))?;
+            let mut dev = surgbench_core::haptic::ReplayDevice::new(session);
+            let r = run_haptic_loop(m, &mut dev, rate, duration)?;
+            if let Some(out) = &a.record {
+                dev.write_csv(out)
+                    .map_err(|e| Failure::Runtime(format!("cannot write {}: {e}", out.display())))?;
+            }
+            r
+        }
+        None => {
+            let mut dev = surgbench_core::haptic::ScriptedDevice::new(resolved.scene().control.clone());
+            run_haptic_loop(m, &mut dev, rate, duration)?
+        }
+    };
+    let (model, scenario, full) = (&a.spec.model, &a.spec.scenario, &resolved.fidelity);
+    say!("{model} on {scenario} [{full}] at {rate} Hz for {duration} s");
+    say!("{report}");
+    if let Some(path) = &a.csv {
+        let row = report.row(model, scenario, &full.to_string());
+        write_haptic_row(path, row).map_err(|e| Failure::Runtime(e.to_string()))?;
+    }
+    Ok(())
+}
+
+/// Write a one-row `haptic.csv` to `path` through a temporary file.
+fn write_haptic_row(path: &Path, row: surgbench_reports::HapticRow) -> Result<(), surgbench_reports::ReportError> {
+    let tmp = path.with_extension("csv.tmp");
+    surgbench_reports::write_haptic_csv(&tmp, &[row])?;
+    std::fs::rename(&tmp, path).map_err(|e| surgbench_reports::ReportError::Io {
+        path: path.to_path_buf(),
+        source: e,
+    })
+}
+
+/// `surgbench gate-workload`: build and step, nothing else (what valgrind counts).
+fn cmd_gate_workload(a: &GateWorkloadArgs) -> Result<(), Failure> {
+    let s = &a.spec;
+    let fidelity = surgbench_core::Fidelity::parse_pairs(&s.fidelity).map_err(|e| Failure::Usage(e.0))?;
+    let w = gate::Workload {
+        model: s.model.clone(),
+        scenario: s.scenario.clone(),
+        params: parse_overrides(&s.params)?.into_iter().collect(),
+        fidelity: fidelity.pairs().into_iter().collect(),
+        steps: a.steps,
+    };
+    gate::run_workload(&w, a.steps)?;
+    Ok(())
 }

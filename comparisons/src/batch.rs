@@ -10,7 +10,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
-use surgbench_reports::{HapticRow, ResultRow, RunInfo};
+use surgbench_reports::{HapticRow, ResultRow, RunInfo, RunSummary, Status};
 
 /// How to run a comparison.
 #[derive(Debug, Clone)]
@@ -19,8 +19,10 @@ pub struct BatchOptions {
     pub quick: bool,
     /// Restrict to these models.
     pub models: Option<Vec<String>>,
-    /// Report folder (replaced atomically at the end).
+    /// Report folder (replaced atomically at the end; see [`crate::outdir`]).
     pub out: PathBuf,
+    /// Replace `out` even when it is a non-empty folder that is not a surgbench report.
+    pub force: bool,
     /// Threads per run (RAYON_NUM_THREADS of the child).
     pub threads: usize,
     /// Override the comparison's repeats.
@@ -98,53 +100,6 @@ fn base_row(c: &Comparison, job: &Job) -> ResultRow {
     }
 }
 
-fn num(v: &serde_json::Value, k: &str) -> Option<f64> {
-    v.get(k).and_then(|x| x.as_f64())
-}
-
-fn text(v: &serde_json::Value, k: &str) -> String {
-    v.get(k).and_then(|x| x.as_str()).unwrap_or_default().to_string()
-}
-
-/// Fill a row from a child's `summary.json`.
-fn row_from_summary(mut row: ResultRow, v: &serde_json::Value) -> ResultRow {
-    if let Some(f) = v.get("fidelity").and_then(|f| f.as_object()) {
-        let get = |k: &str| f.get(k).and_then(|x| x.as_f64());
-        row.segments = get("segments");
-        row.mesh_level = get("mesh_level");
-        row.dt = get("dt");
-        row.iterations = get("iterations");
-    }
-    let fs = text(v, "fidelity_string");
-    if !fs.is_empty() {
-        row.fidelity = fs;
-    }
-    row.status = text(v, "status");
-    row.reason = text(v, "reason");
-    row.end = text(v, "end");
-    row.steps = num(v, "steps");
-    row.sim_time_s = num(v, "sim_time_s");
-    row.ms_per_step_median = num(v, "ms_per_step_median");
-    row.ms_per_step_p95 = num(v, "ms_per_step_p95");
-    row.steps_per_s = num(v, "steps_per_s");
-    row.real_time_factor = num(v, "real_time_factor");
-    row.solver_iters_mean = num(v, "solver_iters_mean");
-    row.solver_iters_max = num(v, "solver_iters_max");
-    row.peak_rss_mb = num(v, "peak_rss_mb");
-    row.build_ms = num(v, "build_ms");
-    row.solve_wall_s = num(v, "solve_wall_s");
-    row.stable = v.get("stable").and_then(|x| x.as_bool());
-    row.watchdog = text(v, "watchdog");
-    row.watchdog_t = num(v, "watchdog_t");
-    if let Some(e) = v.get("errors").and_then(|x| x.as_object()) {
-        row.metrics = e
-            .iter()
-            .filter_map(|(k, x)| x.as_f64().map(|x| (k.clone(), x)))
-            .collect();
-    }
-    row
-}
-
 /// Last meaningful lines of a child's stderr (the panic message).
 fn stderr_tail(path: &Path) -> String {
     let s = std::fs::read_to_string(path).unwrap_or_default();
@@ -172,14 +127,37 @@ fn stderr_tail(path: &Path) -> String {
     }
 }
 
-/// Run one job in a child process; returns its row.
-fn run_job(c: &Comparison, job: &Job, runs: &Path, opts: &BatchOptions, repeats: usize, timeout: f64) -> ResultRow {
-    let mut row = base_row(c, job);
-    if let Some(reason) = &job.unsupported {
-        row.status = "unsupported".into();
-        row.reason = reason.clone();
-        return row;
+/// What became of a child process: it succeeded (its output is read by the
+/// caller) or it did not, as a status and reason for the row.
+enum ChildEnd {
+    /// Exited with status 0.
+    Success,
+    /// Could not start, crashed, or was killed at the limit.
+    Failed(Status, String),
+}
+
+/// Spawn `cmd` with stderr to `err_path`, wait up to `timeout` s, and say
+/// how it ended: the one place a child job is started and classified.
+fn run_child(cmd: Command, err_path: &Path, timeout: f64, opts: &BatchOptions) -> ChildEnd {
+    match spawn_with_limit(cmd, err_path, timeout) {
+        Err(e) => ChildEnd::Failed(Status::Failed, format!("could not start {}: {e}", opts.exe.display())),
+        Ok((None, elapsed)) => {
+            ChildEnd::Failed(Status::Timeout, format!("killed after {elapsed:.1} s wall-clock limit"))
+        }
+        Ok((Some(s), _)) if s.success() => ChildEnd::Success,
+        Ok((Some(s), elapsed)) => ChildEnd::Failed(
+            Status::Failed,
+            format!(
+                "{} after {elapsed:.2} s: {}",
+                exit_description(&s),
+                stderr_tail(err_path)
+            ),
+        ),
     }
+}
+
+/// A job's folder under the report: `runs/<scenario>[@<params>]/<model>/<fidelity>`.
+fn run_dir_of(job: &Job) -> PathBuf {
     // Parameter overrides are part of the folder name: one scenario may
     // appear several times in a comparison with different parameters.
     let scen_dir = if job.params.is_empty() {
@@ -188,10 +166,21 @@ fn run_job(c: &Comparison, job: &Job, runs: &Path, opts: &BatchOptions, repeats:
         let p: Vec<String> = job.params.iter().map(|(k, v)| format!("{k}={v}")).collect();
         format!("{}@{}", job.scenario, slug(&p.join(";")))
     };
-    let rel = PathBuf::from("runs")
+    PathBuf::from("runs")
         .join(scen_dir)
         .join(&job.model)
-        .join(slug(&job.fidelity.to_string()));
+        .join(slug(&job.fidelity.to_string()))
+}
+
+/// Run one job in a child process; returns its row.
+fn run_job(c: &Comparison, job: &Job, runs: &Path, opts: &BatchOptions, repeats: usize, timeout: f64) -> ResultRow {
+    let mut row = base_row(c, job);
+    if let Some(reason) = &job.unsupported {
+        row.status = Status::Unsupported;
+        row.reason = reason.clone();
+        return row;
+    }
+    let rel = run_dir_of(job);
     let dir = runs.parent().expect("runs has a parent").join(&rel);
     if let Some(p) = dir.parent() {
         let _ = std::fs::create_dir_all(p);
@@ -203,42 +192,17 @@ fn run_job(c: &Comparison, job: &Job, runs: &Path, opts: &BatchOptions, repeats:
         .arg("--repeats")
         .arg(repeats.to_string())
         .arg("--quiet");
-    let (status, elapsed) = match spawn_with_limit(cmd, &err_path, timeout) {
-        Ok(x) => x,
-        Err(e) => {
-            row.status = "failed".into();
-            row.reason = format!("could not start {}: {e}", opts.exe.display());
-            return row;
-        }
-    };
-    match status {
-        None => {
-            row.status = "timeout".into();
-            row.reason = format!("killed after {elapsed:.1} s wall-clock limit");
-        }
-        Some(s) if s.success() => match std::fs::read_to_string(dir.join("summary.json"))
-            .ok()
-            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
-        {
-            Some(v) => {
-                row = row_from_summary(row, &v);
-                row.run_dir = rel.to_string_lossy().into_owned();
-            }
-            None => {
-                row.status = "failed".into();
+    match run_child(cmd, &err_path, timeout, opts) {
+        ChildEnd::Failed(status, reason) => (row.status, row.reason) = (status, reason),
+        ChildEnd::Success => match RunSummary::read(&dir.join("summary.json")) {
+            Ok(s) => row = row.with_summary(s, rel.to_string_lossy().into_owned()),
+            Err(_) => {
+                row.status = Status::Failed;
                 row.reason = "run finished but wrote no readable summary.json".into();
             }
         },
-        Some(s) => {
-            row.status = "failed".into();
-            row.reason = format!(
-                "{} after {elapsed:.2} s: {}",
-                exit_description(&s),
-                stderr_tail(&err_path)
-            );
-        }
     }
-    if row.status == "ok" || row.status == "unstable" || row.status == "unsupported" {
+    if matches!(row.status, Status::Ok | Status::Unstable | Status::Unsupported) {
         let _ = std::fs::remove_file(&err_path);
     }
     row
@@ -319,7 +283,7 @@ fn run_haptic_job(job: &HapticJob, dir: &Path, opts: &BatchOptions) -> HapticRow
         ..Default::default()
     };
     if let Some(reason) = &job.unsupported {
-        row.status = "unsupported".into();
+        row.status = Status::Unsupported;
         row.reason = reason.clone();
         return row;
     }
@@ -335,34 +299,19 @@ fn run_haptic_job(job: &HapticJob, dir: &Path, opts: &BatchOptions) -> HapticRow
         .arg(&csv);
     // Model build and the loop's own duration, with room for a slow machine.
     let timeout = 2.0 * job.duration_s + 120.0;
-    match spawn_with_limit(cmd, &err_path, timeout) {
-        Err(e) => {
-            row.status = "failed".into();
-            row.reason = format!("could not start {}: {e}", opts.exe.display());
-        }
-        Ok((None, elapsed)) => {
-            row.status = "timeout".into();
-            row.reason = format!("killed after {elapsed:.1} s wall-clock limit");
-        }
-        Ok((Some(s), _)) if s.success() => match surgbench_reports::read_haptic_csv(&csv) {
+    match run_child(cmd, &err_path, timeout, opts) {
+        ChildEnd::Failed(status, reason) => (row.status, row.reason) = (status, reason),
+        ChildEnd::Success => match surgbench_reports::read_haptic_csv(&csv) {
             Ok(mut r) if r.len() == 1 => row = r.remove(0),
             Ok(r) => {
-                row.status = "failed".into();
+                row.status = Status::Failed;
                 row.reason = format!("haptic loop wrote {} rows, expected 1", r.len());
             }
             Err(e) => {
-                row.status = "failed".into();
+                row.status = Status::Failed;
                 row.reason = format!("haptic loop finished but its CSV is unreadable: {e}");
             }
         },
-        Ok((Some(s), elapsed)) => {
-            row.status = "failed".into();
-            row.reason = format!(
-                "{} after {elapsed:.2} s: {}",
-                exit_description(&s),
-                stderr_tail(&err_path)
-            );
-        }
     }
     let _ = std::fs::remove_file(&err_path);
     let _ = std::fs::remove_file(&csv);
@@ -499,6 +448,7 @@ pub fn temp_sibling(out: &Path) -> std::io::Result<PathBuf> {
 /// Run a comparison and write its report to `opts.out`. Returns the rows.
 pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultRow>, BatchError> {
     let started = Instant::now();
+    crate::outdir::check_replaceable(&opts.out, opts.force)?;
     let jobs = c.jobs(opts.quick, opts.models.as_deref())?;
     let haptic_jobs = c.haptic_jobs(opts.quick, opts.models.as_deref())?;
     if jobs.is_empty() {
@@ -512,6 +462,7 @@ pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultR
     let timeout = opts.timeout_s.or(c.timeout_s).unwrap_or(300.0);
     let tmp = temp_sibling(&opts.out).map_err(io("cannot create the temporary report folder"))?;
     let result = (|| -> Result<Vec<ResultRow>, BatchError> {
+        crate::outdir::write_marker(&tmp).map_err(io("cannot write the report marker"))?;
         let runs = tmp.join("runs");
         std::fs::create_dir_all(&runs).map_err(io("cannot create runs/"))?;
         let bar = if opts.quiet {

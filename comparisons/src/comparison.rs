@@ -21,6 +21,7 @@
 //! scenarios; only a comparison that lists models explicitly names them.
 
 use crate::registry;
+use crate::resolve::ResolvedRun;
 use crate::scenario::{Params, UsageError};
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -233,26 +234,21 @@ impl Comparison {
     pub fn haptic_jobs(&self, quick: bool, only: Option<&[String]>) -> Result<Vec<HapticJob>, UsageError> {
         let mut jobs = Vec::new();
         for h in &self.haptic {
-            let f = registry::model(&h.model)?;
+            registry::model(&h.model)?;
             if only.is_some_and(|o| !o.iter().any(|m| m == &h.model)) {
                 continue;
             }
-            let sc = registry::scenario(&h.scenario)?;
             let overrides: Vec<(String, f64)> = h.params.iter().map(|(k, v)| (k.clone(), *v)).collect();
-            let params = Params::resolve(sc.id(), sc.params(), &overrides)?;
-            let fidelity = expand(&h.fidelity.iter().map(|(k, v)| (k.clone(), vec![*v])).collect())?.remove(0);
-            fidelity
-                .check_extras(f.fidelity_keys())
-                .map_err(|e| UsageError(format!("[[haptic]] model `{}`: {}", h.model, e.0)))?;
-            let inst = sc.instantiate_at(&params, &fidelity)?;
+            let run = ResolvedRun::from_knobs(&h.scenario, &h.model, &overrides, &h.fidelity)
+                .map_err(|e| UsageError(format!("[[haptic]] {}", e.0)))?;
             jobs.push(HapticJob {
                 model: h.model.clone(),
                 scenario: h.scenario.clone(),
                 params: overrides,
-                fidelity,
+                fidelity: run.requested,
                 rate_hz: h.rate_hz,
                 duration_s: if quick { h.quick_duration_s } else { h.duration_s },
-                unsupported: f.check(inst.scene()).err().map(|u| u.reason),
+                unsupported: run.support.err(),
             });
         }
         Ok(jobs)

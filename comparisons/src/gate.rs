@@ -7,12 +7,12 @@
 //! `(1 + margin)` times its committed baseline.
 
 use crate::registry;
-use crate::scenario::{Params, UsageError};
+use crate::resolve::ResolvedRun;
+use crate::scenario::UsageError;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::process::Command;
-use surgbench_core::Fidelity;
 
 /// One gated workload.
 #[derive(Debug, Clone, Deserialize, Serialize)]
@@ -111,25 +111,27 @@ pub fn cpu_model() -> String {
         .unwrap_or_else(|| "unknown".into())
 }
 
+impl Workload {
+    /// The workload resolved and validated (scenario, model, parameters, fidelity).
+    pub fn resolve(&self) -> Result<ResolvedRun, UsageError> {
+        let overrides: Vec<(String, f64)> = self.params.iter().map(|(k, v)| (k.clone(), *v)).collect();
+        ResolvedRun::from_knobs(&self.scenario, &self.model, &overrides, &self.fidelity)
+    }
+}
+
 /// Build the workload's model and take `steps` steps (what valgrind counts).
 pub fn run_workload(w: &Workload, steps: usize) -> Result<(), UsageError> {
-    let sc = registry::scenario(&w.scenario)?;
-    let f = registry::model(&w.model)?;
-    let overrides: Vec<(String, f64)> = w.params.iter().map(|(k, v)| (k.clone(), *v)).collect();
-    let params = Params::resolve(sc.id(), sc.params(), &overrides)?;
-    let mut fid = Fidelity::default();
-    for (k, v) in &w.fidelity {
-        fid.set(k, *v).map_err(|e| UsageError(e.0))?;
-    }
-    let run = sc.instantiate_at(&params, &fid)?;
-    let fid = f.default_fidelity(run.scene()).merged(&fid);
-    let mut m = f
-        .build(run.scene(), &fid)
-        .map_err(|e| UsageError(format!("{}: {e}", w.key())))?;
+    step_workload(&w.resolve()?, steps, &w.key())
+}
+
+/// Build `run`'s model and take `steps` steps along its control timeline;
+/// errors are prefixed with `key`.
+pub fn step_workload(run: &ResolvedRun, steps: usize, key: &str) -> Result<(), UsageError> {
+    let mut m = run.build().map_err(|e| UsageError(format!("{key}: {}", e.0)))?;
     let dt = m.dt();
     for k in 0..steps {
         let cmd = run.scene().control.command_at((k + 1) as f64 * dt);
-        m.step(dt, &cmd).map_err(|e| UsageError(format!("{}: {e}", w.key())))?;
+        m.step(dt, &cmd).map_err(|e| UsageError(format!("{key}: {e}")))?;
     }
     Ok(())
 }

@@ -23,6 +23,7 @@ use std::fmt;
 use std::time::{Duration, Instant};
 use surgbench_core::haptic::{Feedback, HapticDevice};
 use surgbench_core::{DeviceCommand, Model};
+use surgbench_reports::Status;
 
 /// What one haptic loop measured.
 #[derive(Debug, Clone, Default)]
@@ -67,7 +68,11 @@ impl HapticReport {
             model: model.into(),
             scenario: scenario.into(),
             fidelity: fidelity.into(),
-            status: if self.stopped.is_some() { "stopped" } else { "ok" }.into(),
+            status: if self.stopped.is_some() {
+                Status::Stopped
+            } else {
+                Status::Ok
+            },
             reason: self.stopped.clone().unwrap_or_default(),
             rate_hz: self.rate_hz,
             duration_s: self.duration_s,
@@ -128,6 +133,37 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
     sorted[((sorted.len() - 1) as f64 * p).round() as usize]
 }
 
+/// Sleep until `t`, then spin for the last 100 us (sleep alone wakes late).
+fn wait_until(t: Instant) {
+    let spin = Duration::from_micros(100);
+    loop {
+        let now = Instant::now();
+        if now >= t {
+            return;
+        }
+        let left = t - now;
+        if left > spin {
+            std::thread::sleep(left - spin);
+        } else {
+            std::hint::spin_loop();
+        }
+    }
+}
+
+impl HapticReport {
+    /// Fill the latency percentiles and jitter from every tick's latency
+    /// and start lateness (s).
+    fn summarize(&mut self, mut latency: Vec<f64>, lateness: &[f64]) {
+        latency.sort_by(f64::total_cmp);
+        self.latency_p50_ms = 1e3 * percentile(&latency, 0.5);
+        self.latency_p95_ms = 1e3 * percentile(&latency, 0.95);
+        self.latency_p99_ms = 1e3 * percentile(&latency, 0.99);
+        self.latency_max_ms = 1e3 * latency.last().copied().unwrap_or(f64::NAN);
+        self.jitter_mean_ms = 1e3 * lateness.iter().sum::<f64>() / lateness.len().max(1) as f64;
+        self.jitter_max_ms = 1e3 * lateness.iter().copied().fold(0.0, f64::max);
+    }
+}
+
 /// Run `model` against `device` at `rate_hz` for `duration_s` seconds of
 /// wall (and simulated) time on a dedicated thread; see the module docs.
 /// The device is borrowed, so a [`surgbench_core::haptic::ReplayDevice`]
@@ -170,22 +206,9 @@ pub fn run_haptic_loop(
                 let mut latency = Vec::with_capacity(ticks);
                 let mut lateness = Vec::with_capacity(ticks);
                 let start = Instant::now();
-                let spin = Duration::from_micros(100);
                 'ticks: for k in 0..ticks {
                     let scheduled = start + Duration::from_secs_f64(k as f64 * period);
-                    // Wait for the tick: sleep, then spin the last 100 us.
-                    loop {
-                        let now = Instant::now();
-                        if now >= scheduled {
-                            break;
-                        }
-                        let left = scheduled - now;
-                        if left > spin {
-                            std::thread::sleep(left - spin);
-                        } else {
-                            std::hint::spin_loop();
-                        }
-                    }
+                    wait_until(scheduled);
                     lateness.push((Instant::now() - scheduled).as_secs_f64());
                     let t = (k + 1) as f64 * period;
                     let cmd = device.command(t);
@@ -212,13 +235,7 @@ pub fn run_haptic_loop(
                     rep.ticks = k + 1;
                 }
                 rep.wall_s = start.elapsed().as_secs_f64();
-                latency.sort_by(f64::total_cmp);
-                rep.latency_p50_ms = 1e3 * percentile(&latency, 0.5);
-                rep.latency_p95_ms = 1e3 * percentile(&latency, 0.95);
-                rep.latency_p99_ms = 1e3 * percentile(&latency, 0.99);
-                rep.latency_max_ms = 1e3 * latency.last().copied().unwrap_or(f64::NAN);
-                rep.jitter_mean_ms = 1e3 * lateness.iter().sum::<f64>() / lateness.len().max(1) as f64;
-                rep.jitter_max_ms = 1e3 * lateness.iter().copied().fold(0.0, f64::max);
+                rep.summarize(latency, &lateness);
                 rep
             })
             .map_err(|e| UsageError(format!("cannot start the haptic thread: {e}")))?;

@@ -7,12 +7,11 @@
 
 use crate::scenario::{Params, Scenario, ScenarioRun, Scorer, UsageError};
 use nalgebra::UnitQuaternion;
-use serde::Serialize;
 use std::collections::BTreeMap;
-use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
 use surgbench_core::{BuildError, DeviceCommand, Fidelity, Iso3, LoadRamp, ModelFactory, Observation, Scene, Vec3};
+use surgbench_reports::{End, NodeState, Outcome, Status};
 
 /// A run cannot count as settled before this many steps: a model at rest
 /// before the load acts must not pass for one at equilibrium.
@@ -42,89 +41,7 @@ impl Default for RunOptions {
     }
 }
 
-/// One sample of the time series (`observables.csv`).
-#[derive(Debug, Clone, Copy, Serialize)]
-pub struct Sample {
-    /// Time (s).
-    pub t: f64,
-    /// Tip position (m).
-    pub tip: [f64; 3],
-    /// Hand force (N).
-    pub hand_force: [f64; 3],
-    /// Hand torque (N m).
-    pub hand_torque: [f64; 3],
-    /// Total mechanical energy (J).
-    pub energy: f64,
-    /// Primary error at this time.
-    pub error: f64,
-}
-
-/// Everything measured in one run; serialised as `summary.json`.
-#[derive(Debug, Clone, Serialize, Default)]
-pub struct RunSummary {
-    /// Scenario id.
-    pub scenario: String,
-    /// Model id.
-    pub model: String,
-    /// All resolved parameter values.
-    pub params: BTreeMap<String, f64>,
-    /// Overrides as given (`k=v;k=v`).
-    pub overrides: String,
-    /// Resolved fidelity (model defaults overlaid with the request).
-    pub fidelity: BTreeMap<String, f64>,
-    /// Resolved fidelity as a string.
-    pub fidelity_string: String,
-    /// `ok`, `unstable`, `unsupported`, `failed`.
-    pub status: String,
-    /// Why, when not ok.
-    pub reason: String,
-    /// `settled`, `time-limit`, `duration`, `watchdog`, or empty.
-    pub end: String,
-    /// Steps taken (first repeat).
-    pub steps: usize,
-    /// Simulated time reached (s).
-    pub sim_time_s: f64,
-    /// Median wall time of one step after warm-up (ms).
-    pub ms_per_step_median: Option<f64>,
-    /// 95th percentile (ms).
-    pub ms_per_step_p95: Option<f64>,
-    /// Steps per wall second.
-    pub steps_per_s: Option<f64>,
-    /// Simulated seconds per wall second (> 1 is faster than real time).
-    pub real_time_factor: Option<f64>,
-    /// Mean solver iterations per step.
-    pub solver_iters_mean: Option<f64>,
-    /// Largest solver iteration count.
-    pub solver_iters_max: Option<f64>,
-    /// Peak resident memory of the process (MB), where the OS tells.
-    pub peak_rss_mb: Option<f64>,
-    /// Model build time (ms).
-    pub build_ms: Option<f64>,
-    /// Wall time of every step of the first repeat (s): time to solution.
-    pub solve_wall_s: Option<f64>,
-    /// No watchdog tripped.
-    pub stable: bool,
-    /// First watchdog that tripped, with what it saw.
-    pub watchdog: String,
-    /// When it tripped (s).
-    pub watchdog_t: Option<f64>,
-    /// Headline error metric name.
-    pub primary_error: String,
-    /// Error metrics against the reference.
-    pub errors: BTreeMap<String, f64>,
-    /// Final tip position (m).
-    pub tip: Option<[f64; 3]>,
-    /// Reference tip position (m).
-    pub reference_tip: Option<[f64; 3]>,
-    /// Repeats run.
-    pub repeats: usize,
-    /// Time series (not in summary.json; written to observables.csv).
-    #[serde(skip)]
-    pub series: Vec<Sample>,
-    /// Final observation (not serialised; written to final_state.csv).
-    #[serde(skip)]
-    pub final_obs: Option<Observation>,
-}
+pub use surgbench_reports::{RunSummary, Sample};
 
 fn percentile(sorted: &[f64], p: f64) -> f64 {
     let i = ((sorted.len() - 1) as f64 * p).round() as usize;
@@ -293,7 +210,7 @@ struct Repeat {
     t: f64,
     times_ms: Vec<f64>,
     iters: Vec<u32>,
-    end: String,
+    end: End,
     trip: Option<(String, f64)>,
     series: Vec<Sample>,
     last: Observation,
@@ -302,6 +219,42 @@ struct Repeat {
     errors: Option<BTreeMap<String, f64>>,
 }
 
+impl Repeat {
+    /// Before the first step, from the initial observation.
+    fn start(scene: &Scene, first: Observation, max_steps: usize) -> Self {
+        Repeat {
+            steps: 0,
+            wall_s: 0.0,
+            t: 0.0,
+            times_ms: Vec::with_capacity(max_steps),
+            iters: Vec::with_capacity(max_steps),
+            end: if scene.settle.is_some() {
+                End::TimeLimit
+            } else {
+                End::Duration
+            },
+            trip: None,
+            series: Vec::new(),
+            last: first,
+            errors: None,
+        }
+    }
+}
+
+/// One point of the time series: tip, hand load, energy and primary error.
+fn sample(obs: &Observation, scorer: &dyn Scorer, primary: &str) -> Sample {
+    let tip = obs.rods.first().map(|r| r.tip()).unwrap_or_default();
+    Sample {
+        t: obs.time,
+        tip: [tip.x, tip.y, tip.z],
+        hand_force: [obs.hand_force.x, obs.hand_force.y, obs.hand_force.z],
+        hand_torque: [obs.hand_torque.x, obs.hand_torque.y, obs.hand_torque.z],
+        energy: obs.energy.total(),
+        error: scorer.score(obs).get(primary).copied().unwrap_or(f64::NAN),
+    }
+}
+
+/// Step the model through the scene once, timing each step and watching it.
 fn run_repeat(
     model: &mut dyn surgbench_core::Model,
     run: &ScenarioRun,
@@ -318,36 +271,9 @@ fn run_repeat(
     let mut hand = HandWork::new(scene);
     hand.record(&scene.control.command_at(0.0), &first);
     let mut scorer = run.scorer();
-    let mut rep = Repeat {
-        steps: 0,
-        wall_s: 0.0,
-        t: 0.0,
-        times_ms: Vec::with_capacity(max_steps),
-        iters: Vec::with_capacity(max_steps),
-        end: if scene.settle.is_some() {
-            "time-limit"
-        } else {
-            "duration"
-        }
-        .into(),
-        trip: None,
-        series: Vec::new(),
-        last: first,
-        errors: None,
-    };
-    let sample = |obs: &Observation, scorer: &dyn Scorer| -> Sample {
-        let tip = obs.rods.first().map(|r| r.tip()).unwrap_or_default();
-        Sample {
-            t: obs.time,
-            tip: [tip.x, tip.y, tip.z],
-            hand_force: [obs.hand_force.x, obs.hand_force.y, obs.hand_force.z],
-            hand_torque: [obs.hand_torque.x, obs.hand_torque.y, obs.hand_torque.z],
-            energy: obs.energy.total(),
-            error: scorer.score(obs).get(primary).copied().unwrap_or(f64::NAN),
-        }
-    };
+    let mut rep = Repeat::start(scene, first, max_steps);
     if record {
-        rep.series.push(sample(&rep.last, scorer.as_ref()));
+        rep.series.push(sample(&rep.last, scorer.as_ref(), primary));
     }
     for k in 0..max_steps {
         let t = (k + 1) as f64 * dt;
@@ -361,7 +287,7 @@ fn run_repeat(
         match res {
             Err(e) => {
                 rep.trip = Some((e.to_string(), t));
-                rep.end = "watchdog".into();
+                rep.end = End::Watchdog;
                 break;
             }
             Ok(stats) => {
@@ -376,7 +302,7 @@ fn run_repeat(
         hand.record(&cmd, &obs);
         if let Some(w) = watchdog(&obs, run, e0, hand.work, opts) {
             rep.trip = Some((w, t));
-            rep.end = "watchdog".into();
+            rep.end = End::Watchdog;
             rep.last = obs;
             break;
         }
@@ -384,11 +310,11 @@ fn run_repeat(
             .settle
             .is_some_and(|s| k + 1 >= MIN_SETTLE_STEPS && t >= s.min_time && obs.max_speed() < s.velocity_tol);
         if record && (k % every == every - 1 || settled || k + 1 == max_steps) {
-            rep.series.push(sample(&obs, scorer.as_ref()));
+            rep.series.push(sample(&obs, scorer.as_ref(), primary));
         }
         rep.last = obs;
         if settled {
-            rep.end = "settled".into();
+            rep.end = End::Settled;
             break;
         }
     }
@@ -411,7 +337,22 @@ pub fn run_single(
     opts: &RunOptions,
 ) -> Result<RunSummary, UsageError> {
     let scene = run.scene();
+    let support = factory.check(scene).map_err(|u| u.reason);
     let fid = factory.default_fidelity(scene).merged(fidelity);
+    run_checked(scenario, params, run, factory, support, &fid, opts)
+}
+
+/// [`run_single`] for a scene whose `factory.check` answer (`support`) and
+/// full fidelity (`fid`, the model's defaults merged) are already known.
+pub fn run_checked(
+    scenario: &dyn Scenario,
+    params: &Params,
+    run: &ScenarioRun,
+    factory: &dyn ModelFactory,
+    support: Result<(), String>,
+    fid: &Fidelity,
+    opts: &RunOptions,
+) -> Result<RunSummary, UsageError> {
     let mut s = RunSummary {
         scenario: scenario.id().into(),
         model: factory.id().into(),
@@ -419,92 +360,39 @@ pub fn run_single(
         overrides: params.overrides_string(),
         fidelity: fid.pairs().into_iter().collect(),
         fidelity_string: fid.to_string(),
+        outcome: Outcome {
+            steps: Some(0.0),
+            sim_time_s: Some(0.0),
+            stable: Some(false),
+            ..Default::default()
+        },
         primary_error: scenario.primary_error().into(),
         reference_tip: run.reference_tip(),
         repeats: opts.repeats.max(1),
         ..Default::default()
     };
-    if let Err(u) = factory.check(scene) {
-        s.status = "unsupported".into();
-        s.reason = u.reason;
+    if let Err(reason) = support {
+        s.status = Status::Unsupported;
+        s.reason = reason;
         return Ok(s);
     }
-    let mut times = Vec::new();
-    let mut iters = Vec::new();
-    let mut first: Option<Repeat> = None;
-    let mut diagnostics = BTreeMap::new();
-    for r in 0..opts.repeats.max(1) {
-        let t0 = Instant::now();
-        let mut model = match factory.build(scene, &fid) {
-            Ok(m) => m,
-            Err(BuildError::Unsupported(u)) => {
-                s.status = "unsupported".into();
-                s.reason = u.reason;
-                return Ok(s);
-            }
-            Err(BuildError::BadParameter { name, reason }) => {
-                return Err(UsageError(format!(
-                    "model `{}`: bad parameter `{name}`: {reason}",
-                    factory.id()
-                )));
-            }
-        };
-        if r == 0 {
-            s.build_ms = Some(t0.elapsed().as_secs_f64() * 1e3);
+    let reps = match run_repeats(scenario, run, factory, fid, opts)? {
+        Ok(reps) => reps,
+        Err(reason) => {
+            s.status = Status::Unsupported;
+            s.reason = reason;
+            return Ok(s);
         }
-        let rep = run_repeat(model.as_mut(), run, scenario.primary_error(), opts, r == 0);
-        if r == 0 {
-            diagnostics = model.diagnostics();
-        }
-        times.extend_from_slice(&rep.times_ms);
-        iters.extend(rep.iters.iter().map(|&i| i as f64));
-        match &first {
-            None => first = Some(rep),
-            Some(f) => {
-                if f.last != rep.last || f.steps != rep.steps {
-                    s.status = "failed".into();
-                    s.reason = format!("non-deterministic: repeat {r} differs from repeat 0");
-                }
-            }
-        }
-    }
-    let rep = first.expect("at least one repeat");
-    s.steps = rep.steps;
-    s.sim_time_s = rep.t;
-    s.solve_wall_s = Some(rep.wall_s);
-    s.end = rep.end.clone();
-    if !times.is_empty() {
-        let mut sorted = times.clone();
-        sorted.sort_by(f64::total_cmp);
-        let total: f64 = times.iter().sum();
-        s.ms_per_step_median = Some(percentile(&sorted, 0.5));
-        s.ms_per_step_p95 = Some(percentile(&sorted, 0.95));
-        s.steps_per_s = Some(times.len() as f64 / (total / 1e3));
-        let dt = rep.t / rep.steps as f64;
-        s.real_time_factor = Some(times.len() as f64 * dt / (total / 1e3));
-    }
-    if !iters.is_empty() {
-        s.solver_iters_mean = Some(iters.iter().sum::<f64>() / iters.len() as f64);
-        s.solver_iters_max = iters.iter().copied().reduce(f64::max);
-    }
-    s.peak_rss_mb = peak_rss_mb();
-    s.stable = rep.trip.is_none();
-    if let Some((w, t)) = &rep.trip {
-        s.watchdog = w.clone();
-        s.watchdog_t = Some(*t);
-        if s.status.is_empty() {
-            s.status = "unstable".into();
-            s.reason = format!("{w} at t={t:.4} s");
-        }
-    }
-    if s.status.is_empty() {
-        s.status = "ok".into();
-    }
+    };
+    s.build_ms = Some(reps.build_ms);
+    record_timing(&mut s.outcome, &reps);
+    record_verdict(&mut s.outcome, &reps);
+    let rep = reps.first;
     if let Some(errors) = rep.errors {
         s.errors = errors;
         // The model's own diagnostics, prefixed so they never shadow a
         // scenario metric.
-        for (k, v) in diagnostics {
+        for (k, v) in reps.diagnostics {
             if v.is_finite() {
                 s.errors.insert(format!("diag_{k}"), v);
             }
@@ -515,70 +403,147 @@ pub fn run_single(
         });
     }
     s.series = rep.series;
-    s.final_obs = Some(rep.last);
+    s.final_state = final_state(&rep.last);
     Ok(s)
+}
+
+/// Every repeat of a run: the first in full, the pooled timings of all.
+struct Repeats {
+    first: Repeat,
+    build_ms: f64,
+    diagnostics: BTreeMap<String, f64>,
+    times_ms: Vec<f64>,
+    iters: Vec<f64>,
+    /// Why the run is not reproducible, if it is not.
+    nondeterministic: Option<String>,
+}
+
+/// A built model and its build time (ms).
+type Built = (Box<dyn surgbench_core::Model>, f64);
+
+/// A fresh model for the scene and its build time (ms). The inner `Err` is
+/// the model's refusal to build the scene (unsupported), the outer a bad knob.
+fn build_model(factory: &dyn ModelFactory, scene: &Scene, fid: &Fidelity) -> Result<Result<Built, String>, UsageError> {
+    let t0 = Instant::now();
+    match factory.build(scene, fid) {
+        Ok(m) => Ok(Ok((m, t0.elapsed().as_secs_f64() * 1e3))),
+        Err(BuildError::Unsupported(u)) => Ok(Err(u.reason)),
+        Err(BuildError::BadParameter { name, reason }) => Err(UsageError(format!(
+            "model `{}`: bad parameter `{name}`: {reason}",
+            factory.id()
+        ))),
+    }
+}
+
+/// Build and run the model `opts.repeats` times (errors as [`build_model`]).
+fn run_repeats(
+    scenario: &dyn Scenario,
+    run: &ScenarioRun,
+    factory: &dyn ModelFactory,
+    fid: &Fidelity,
+    opts: &RunOptions,
+) -> Result<Result<Repeats, String>, UsageError> {
+    let primary = scenario.primary_error();
+    let (mut model, build_ms) = match build_model(factory, run.scene(), fid)? {
+        Ok(m) => m,
+        Err(reason) => return Ok(Err(reason)),
+    };
+    let first = run_repeat(model.as_mut(), run, primary, opts, true);
+    let mut reps = Repeats {
+        build_ms,
+        diagnostics: model.diagnostics(),
+        times_ms: first.times_ms.clone(),
+        iters: first.iters.iter().map(|&i| i as f64).collect(),
+        nondeterministic: None,
+        first,
+    };
+    for r in 1..opts.repeats.max(1) {
+        let mut model = match build_model(factory, run.scene(), fid)? {
+            Ok((m, _)) => m,
+            Err(reason) => return Ok(Err(reason)),
+        };
+        let rep = run_repeat(model.as_mut(), run, primary, opts, false);
+        reps.times_ms.extend_from_slice(&rep.times_ms);
+        reps.iters.extend(rep.iters.iter().map(|&i| i as f64));
+        if reps.first.last != rep.last || reps.first.steps != rep.steps {
+            reps.nondeterministic = Some(format!("non-deterministic: repeat {r} differs from repeat 0"));
+        }
+    }
+    Ok(Ok(reps))
+}
+
+/// Steps, simulated time and the timing statistics of `reps`.
+fn record_timing(o: &mut Outcome, reps: &Repeats) {
+    let rep = &reps.first;
+    o.steps = Some(rep.steps as f64);
+    o.sim_time_s = Some(rep.t);
+    o.solve_wall_s = Some(rep.wall_s);
+    o.end = rep.end;
+    let times = &reps.times_ms;
+    if !times.is_empty() {
+        let mut sorted = times.clone();
+        sorted.sort_by(f64::total_cmp);
+        let total: f64 = times.iter().sum();
+        o.ms_per_step_median = Some(percentile(&sorted, 0.5));
+        o.ms_per_step_p95 = Some(percentile(&sorted, 0.95));
+        o.steps_per_s = Some(times.len() as f64 / (total / 1e3));
+        let dt = rep.t / rep.steps as f64;
+        o.real_time_factor = Some(times.len() as f64 * dt / (total / 1e3));
+    }
+    let iters = &reps.iters;
+    if !iters.is_empty() {
+        o.solver_iters_mean = Some(iters.iter().sum::<f64>() / iters.len() as f64);
+        o.solver_iters_max = iters.iter().copied().reduce(f64::max);
+    }
+    o.peak_rss_mb = peak_rss_mb();
+}
+
+/// Status, reason and watchdog of `reps`: a non-reproducible run failed,
+/// one that tripped a watchdog is unstable, else ok.
+fn record_verdict(o: &mut Outcome, reps: &Repeats) {
+    if let Some(reason) = &reps.nondeterministic {
+        o.status = Status::Failed;
+        o.reason = reason.clone();
+    }
+    o.stable = Some(reps.first.trip.is_none());
+    if let Some((w, t)) = &reps.first.trip {
+        o.watchdog = w.clone();
+        o.watchdog_t = Some(*t);
+        if o.status == Status::Unset {
+            o.status = Status::Unstable;
+            o.reason = format!("{w} at t={t:.4} s");
+        }
+    }
+    if o.status == Status::Unset {
+        o.status = Status::Ok;
+    }
+}
+
+/// Rest and final positions of every node, rods first, then tissues.
+fn final_state(obs: &Observation) -> Vec<NodeState> {
+    let bodies = obs
+        .rods
+        .iter()
+        .map(|r| (&r.rest, &r.nodes))
+        .chain(obs.tissues.iter().map(|t| (&t.rest, &t.nodes)));
+    let mut out = Vec::new();
+    for (body, (rest, nodes)) in bodies.enumerate() {
+        for (node, (x0, x)) in rest.iter().zip(nodes).enumerate() {
+            out.push(NodeState {
+                body,
+                node,
+                rest: [x0.x, x0.y, x0.z],
+                x: [x.x, x.y, x.z],
+            });
+        }
+    }
+    out
 }
 
 /// Write `summary.json`, `observables.csv` and `final_state.csv` into `dir`
 /// (which must exist).
 pub fn write_run_files(dir: &Path, s: &RunSummary) -> std::io::Result<()> {
-    let json = serde_json::to_string_pretty(s).map_err(std::io::Error::other)?;
-    std::fs::write(dir.join("summary.json"), json + "\n")?;
-    let mut f = std::io::BufWriter::new(std::fs::File::create(dir.join("observables.csv"))?);
-    writeln!(
-        f,
-        "t,tip_x,tip_y,tip_z,hand_fx,hand_fy,hand_fz,hand_tx,hand_ty,hand_tz,energy,error"
-    )?;
-    for x in &s.series {
-        let err = if x.error.is_finite() {
-            format!("{:e}", x.error)
-        } else {
-            String::new()
-        };
-        writeln!(
-            f,
-            "{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{}",
-            x.t,
-            x.tip[0],
-            x.tip[1],
-            x.tip[2],
-            x.hand_force[0],
-            x.hand_force[1],
-            x.hand_force[2],
-            x.hand_torque[0],
-            x.hand_torque[1],
-            x.hand_torque[2],
-            x.energy,
-            err
-        )?;
-    }
-    f.flush()?;
-    let mut f = std::io::BufWriter::new(std::fs::File::create(dir.join("final_state.csv"))?);
-    writeln!(f, "body,node,x0,y0,z0,x,y,z")?;
-    if let Some(obs) = &s.final_obs {
-        let mut body = 0;
-        for r in &obs.rods {
-            for (i, (x0, x)) in r.rest.iter().zip(&r.nodes).enumerate() {
-                writeln!(
-                    f,
-                    "{body},{i},{:e},{:e},{:e},{:e},{:e},{:e}",
-                    x0.x, x0.y, x0.z, x.x, x.y, x.z
-                )?;
-            }
-            body += 1;
-        }
-        for t in &obs.tissues {
-            for (i, (x0, x)) in t.rest.iter().zip(&t.nodes).enumerate() {
-                writeln!(
-                    f,
-                    "{body},{i},{:e},{:e},{:e},{:e},{:e},{:e}",
-                    x0.x, x0.y, x0.z, x.x, x.y, x.z
-                )?;
-            }
-            body += 1;
-        }
-    }
-    f.flush()
+    s.write_files(dir)
 }
 
 #[cfg(test)]

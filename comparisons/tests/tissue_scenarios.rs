@@ -667,7 +667,7 @@ fn run(scenario: &str, model: &str, overrides: &[(&str, f64)], fidelity: &[(&str
     let s = run_single(sc, &p, &inst, f, &fid, &RunOptions::default()).unwrap();
     assert_eq!(s.status, "ok", "{scenario}/{model} {fidelity:?}: {}", s.reason);
     eprintln!(
-        "{scenario}/{model} {overrides:?} {fidelity:?}: end {} after {} steps, {:?}",
+        "{scenario}/{model} {overrides:?} {fidelity:?}: end {} after {:?} steps, {:?}",
         s.end, s.steps, s.errors
     );
     s

@@ -12,11 +12,13 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::fs;
+use std::ops::{Deref, DerefMut};
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
 use crate::ReportError;
+use crate::summary::{End, Outcome, RunSummary, Status};
 
 /// One row per scenario x model x fidelity: what the harness measured for one run.
 ///
@@ -44,48 +46,47 @@ pub struct ResultRow {
     pub dt: Option<f64>,
     /// Solver iterations per step, if the fidelity sets it.
     pub iterations: Option<f64>,
-    /// `"ok"` | `"unstable"` | `"unsupported"` | `"failed"` | `"timeout"`.
-    pub status: String,
-    /// Unsupported reason / failure message / watchdog message (`""` if ok).
-    pub reason: String,
-    /// Why the run stopped: `"settled"` | `"time-limit"` | `"duration"` | `""`.
-    pub end: String,
-    /// Number of steps taken.
-    pub steps: Option<f64>,
-    /// Simulated time reached (s).
-    pub sim_time_s: Option<f64>,
-    /// Median wall time per step after warm-up (ms).
-    pub ms_per_step_median: Option<f64>,
-    /// 95th percentile wall time per step (ms).
-    pub ms_per_step_p95: Option<f64>,
-    /// Steps per wall-clock second (1/s).
-    pub steps_per_s: Option<f64>,
-    /// Simulated seconds per wall-clock second (dimensionless; >= 1 is real time).
-    pub real_time_factor: Option<f64>,
-    /// Mean solver iterations per step.
-    pub solver_iters_mean: Option<f64>,
-    /// Maximum solver iterations in one step.
-    pub solver_iters_max: Option<f64>,
-    /// Peak resident memory (MiB).
-    pub peak_rss_mb: Option<f64>,
-    /// Model build time (ms).
-    pub build_ms: Option<f64>,
-    /// Wall time of all steps of one run (s): time to solution for static
-    /// scenes, where per-step times of models with different `dt` do not
-    /// compare.
-    pub solve_wall_s: Option<f64>,
-    /// Whether every stability watchdog stayed quiet.
-    pub stable: Option<bool>,
-    /// Name/message of the first watchdog that tripped (`""` if none).
-    pub watchdog: String,
-    /// Simulated time at which the watchdog tripped (s).
-    pub watchdog_t: Option<f64>,
+    /// What the run measured (columns `status` through `watchdog_t`); its
+    /// fields also read directly on the row (`row.status`).
+    #[serde(flatten)]
+    pub outcome: Outcome,
     /// Name of the scenario's headline error metric, a key of `metrics`.
     pub primary_error: String,
     /// This run's folder relative to the report folder (`""` if none); holds `observables.csv`.
     pub run_dir: String,
     /// Error metrics by name, e.g. `"tip_error_rel"`, `"rms_node_error_m"` (units in the name).
     pub metrics: BTreeMap<String, f64>,
+}
+
+impl Deref for ResultRow {
+    type Target = Outcome;
+
+    fn deref(&self) -> &Outcome {
+        &self.outcome
+    }
+}
+
+impl DerefMut for ResultRow {
+    fn deref_mut(&mut self) -> &mut Outcome {
+        &mut self.outcome
+    }
+}
+
+impl ResultRow {
+    /// This row with what a run's `summary.json` says: its outcome, metrics,
+    /// resolved fidelity (`fidelity` and the knob columns) and `run_dir`.
+    pub fn with_summary(mut self, s: RunSummary, run_dir: String) -> Self {
+        let knob = |k: &str| s.fidelity.get(k).copied();
+        (self.segments, self.mesh_level, self.dt, self.iterations) =
+            (knob("segments"), knob("mesh_level"), knob("dt"), knob("iterations"));
+        if !s.fidelity_string.is_empty() {
+            self.fidelity = s.fidelity_string;
+        }
+        self.outcome = s.outcome;
+        self.metrics = s.errors;
+        self.run_dir = run_dir;
+        self
+    }
 }
 
 /// The page header: where, when and how a comparison ran (`summary.json`).
@@ -154,6 +155,8 @@ enum Cell<'a> {
     Text(&'a mut String),
     Num(&'a mut Option<f64>),
     Bool(&'a mut Option<bool>),
+    Status(&'a mut Status),
+    End(&'a mut End),
 }
 
 /// The cell of fixed column `i` (index into [`FIXED_COLUMNS`]).
@@ -170,23 +173,23 @@ fn cell(row: &mut ResultRow, i: usize) -> Cell<'_> {
         7 => Num(&mut row.mesh_level),
         8 => Num(&mut row.dt),
         9 => Num(&mut row.iterations),
-        10 => Text(&mut row.status),
-        11 => Text(&mut row.reason),
-        12 => Text(&mut row.end),
-        13 => Num(&mut row.steps),
-        14 => Num(&mut row.sim_time_s),
-        15 => Num(&mut row.ms_per_step_median),
-        16 => Num(&mut row.ms_per_step_p95),
-        17 => Num(&mut row.steps_per_s),
-        18 => Num(&mut row.real_time_factor),
-        19 => Num(&mut row.solver_iters_mean),
-        20 => Num(&mut row.solver_iters_max),
-        21 => Num(&mut row.peak_rss_mb),
-        22 => Num(&mut row.build_ms),
-        23 => Num(&mut row.solve_wall_s),
-        24 => Bool(&mut row.stable),
-        25 => Text(&mut row.watchdog),
-        26 => Num(&mut row.watchdog_t),
+        10 => Cell::Status(&mut row.outcome.status),
+        11 => Text(&mut row.outcome.reason),
+        12 => Cell::End(&mut row.outcome.end),
+        13 => Num(&mut row.outcome.steps),
+        14 => Num(&mut row.outcome.sim_time_s),
+        15 => Num(&mut row.outcome.ms_per_step_median),
+        16 => Num(&mut row.outcome.ms_per_step_p95),
+        17 => Num(&mut row.outcome.steps_per_s),
+        18 => Num(&mut row.outcome.real_time_factor),
+        19 => Num(&mut row.outcome.solver_iters_mean),
+        20 => Num(&mut row.outcome.solver_iters_max),
+        21 => Num(&mut row.outcome.peak_rss_mb),
+        22 => Num(&mut row.outcome.build_ms),
+        23 => Num(&mut row.outcome.solve_wall_s),
+        24 => Bool(&mut row.outcome.stable),
+        25 => Text(&mut row.outcome.watchdog),
+        26 => Num(&mut row.outcome.watchdog_t),
         27 => Text(&mut row.primary_error),
         28 => Text(&mut row.run_dir),
         _ => unreachable!("FIXED_COLUMNS has 29 entries"),
@@ -263,6 +266,8 @@ pub fn write_results_csv(path: &Path, rows: &[ResultRow]) -> Result<(), ReportEr
                 Cell::Text(s) => s.clone(),
                 Cell::Num(v) => v.map(format_f64).unwrap_or_default(),
                 Cell::Bool(b) => b.map(|b| b.to_string()).unwrap_or_default(),
+                Cell::Status(v) => v.to_string(),
+                Cell::End(v) => v.to_string(),
             });
         }
         for m in &metric_names {
@@ -338,6 +343,8 @@ pub fn read_results_csv(path: &Path) -> Result<Vec<ResultRow>, ReportError> {
                 }
                 Cell::Num(v) => parse_f64(text).map(|x| *v = x),
                 Cell::Bool(b) => parse_bool(text).map(|x| *b = x),
+                Cell::Status(v) => text.trim().parse().map(|x| *v = x),
+                Cell::End(v) => text.trim().parse().map(|x| *v = x),
             };
             res.map_err(|m| ReportError::parse(path, line, FIXED_COLUMNS[i], m))?;
         }

@@ -289,22 +289,26 @@ fn ticks(axis: &Axis, lo: f64, hi: f64) -> (Vec<f64>, Vec<f64>) {
     }
 }
 
+/// The x and y scales of a panel: ranges and tick lines fitted to its points.
+fn scales(p: &Panel) -> (Scale, Scale) {
+    let coord = |f: fn(&(f64, f64)) -> f64| -> Vec<f64> {
+        p.series
+            .iter()
+            .flat_map(|s| s.points.iter().chain(s.line_points.iter()).map(f))
+            .collect()
+    };
+    let scale = |axis: &Axis, vs: &[f64]| {
+        let (lo, hi) = range(axis, vs);
+        let (bold, light) = ticks(axis, lo, hi);
+        Scale { lo, hi, bold, light }
+    };
+    (scale(&p.x, &coord(|q| q.0)), scale(&p.y, &coord(|q| q.1)))
+}
+
+/// Draw one panel: axes, grid, lines and markers.
 fn draw_panel<DB: DrawingBackend>(p: &Panel, area: &DrawingArea<DB, Shift>) -> Result<(), String> {
     let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
-    let xs: Vec<f64> = p
-        .series
-        .iter()
-        .flat_map(|s| s.points.iter().chain(s.line_points.iter()).map(|q| q.0))
-        .collect();
-    let ys: Vec<f64> = p
-        .series
-        .iter()
-        .flat_map(|s| s.points.iter().chain(s.line_points.iter()).map(|q| q.1))
-        .collect();
-    let (x0, x1) = range(&p.x, &xs);
-    let (y0, y1) = range(&p.y, &ys);
-    let (xb, xl) = ticks(&p.x, x0, x1);
-    let (yb, yl) = ticks(&p.y, y0, y1);
+    let (xs, ys) = scales(p);
     let mut builder = ChartBuilder::on(area);
     if !p.title.is_empty() {
         builder.caption(&p.title, font(PANEL_TITLE_PX));
@@ -313,20 +317,7 @@ fn draw_panel<DB: DrawingBackend>(p: &Panel, area: &DrawingArea<DB, Shift>) -> R
         .margin(12)
         .x_label_area_size(60)
         .y_label_area_size(90)
-        .build_cartesian_2d(
-            Scale {
-                lo: x0,
-                hi: x1,
-                bold: xb,
-                light: xl,
-            },
-            Scale {
-                lo: y0,
-                hi: y1,
-                bold: yb,
-                light: yl,
-            },
-        )
+        .build_cartesian_2d(xs, ys)
         .map_err(e)?;
     let xa = p.x.clone();
     let ya = p.y.clone();

@@ -9,9 +9,9 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::ReportError;
 use crate::doc::{Block, Cell};
 use crate::format::fmt_sig;
+use crate::{ReportError, Status};
 
 /// What one fixed-rate haptic loop measured (see the harness's
 /// `haptic::run_haptic_loop` for the definitions of latency and jitter).
@@ -23,9 +23,9 @@ pub struct HapticRow {
     pub scenario: String,
     /// Fidelity as the model ran it (`key=value;...`).
     pub fidelity: String,
-    /// `"ok"` (the loop ran to its end), `"stopped"` (a model error ended
-    /// it early), `"unsupported"`, `"failed"` or `"timeout"`.
-    pub status: String,
+    /// [`Status::Ok`] (the loop ran to its end), [`Status::Stopped`] (a
+    /// model error ended it early), `Unsupported`, `Failed` or `Timeout`.
+    pub status: Status,
     /// Why it is not `ok`.
     pub reason: String,
     /// Loop rate (Hz).
@@ -131,7 +131,7 @@ pub(crate) fn section(rows: &[HapticRow]) -> Vec<Block> {
                 (Some(m), Some(t)) if t > 0.0 => format!("{m} of {t} ({:.2} %)", 100.0 * m / t),
                 _ => "-".into(),
             };
-            let status = if r.status == "ok" {
+            let status = if r.status == Status::Ok {
                 Cell::plain("ok")
             } else {
                 Cell {
@@ -180,7 +180,7 @@ mod tests {
                 model: "der".into(),
                 scenario: "arch-insertion".into(),
                 fidelity: "segments=99".into(),
-                status: "ok".into(),
+                status: Status::Ok,
                 rate_hz: 1000.0,
                 duration_s: 10.0,
                 ticks: Some(10000.0),
@@ -195,7 +195,7 @@ mod tests {
             HapticRow {
                 model: "pbd-rod".into(),
                 scenario: "arch-insertion".into(),
-                status: "unsupported".into(),
+                status: Status::Unsupported,
                 reason: "no, because".into(),
                 rate_hz: 1000.0,
                 duration_s: 10.0,

@@ -32,6 +32,7 @@ mod figure;
 mod format;
 mod haptic;
 mod render;
+mod summary;
 
 pub use analysis::{fit_order, pareto_front};
 pub use data::{
@@ -42,3 +43,4 @@ pub use error::ReportError;
 pub use format::{fmt_sig, fmt_tick, log_ticks};
 pub use haptic::{HAPTIC_COLUMNS, HapticRow, read_haptic_csv, write_haptic_csv};
 pub use render::{render, render_dir};
+pub use summary::{End, NodeState, Outcome, RunSummary, Sample, Status, Trip};

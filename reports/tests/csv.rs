@@ -8,7 +8,7 @@ use std::fs;
 use std::path::Path;
 
 use surgbench_reports::{
-    FIXED_COLUMNS, ReportError, ResultRow, read_results_csv, read_run_info, read_series, write_results_csv,
+    FIXED_COLUMNS, Outcome, ReportError, ResultRow, read_results_csv, read_run_info, read_series, write_results_csv,
     write_run_info,
 };
 
@@ -21,14 +21,17 @@ fn round_trip_is_exact_with_none_and_metric_columns() {
     let mut odd = ResultRow {
         scenario: "a,b \"quoted\"".into(),
         model: "m".into(),
-        reason: "line one\nline two, with comma".into(),
         segments: Some(0.1 + 0.2),
         dt: Some(5e-324),
         iterations: Some(1.7976931348623157e308),
-        steps: Some(-0.0),
-        sim_time_s: Some(1e-5),
-        ms_per_step_median: Some(123456789012345680.0),
-        stable: Some(false),
+        outcome: Outcome {
+            reason: "line one\nline two, with comma".into(),
+            steps: Some(-0.0),
+            sim_time_s: Some(1e-5),
+            ms_per_step_median: Some(123456789012345680.0),
+            stable: Some(false),
+            ..Outcome::default()
+        },
         ..ResultRow::default()
     };
     odd.metrics.insert("only_here_m".into(), 2.5e-17);

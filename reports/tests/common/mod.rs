@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use std::fs;
 use std::path::Path;
 
-use surgbench_reports::{ResultRow, RunInfo};
+use surgbench_reports::{End, Outcome, ResultRow, RunInfo, Status};
 
 /// The workspace's seeded generator for test data.
 pub use surgbench_core::rng::SplitMix64 as SplitMix;
@@ -29,22 +29,25 @@ fn rod_row(model: &str, segments: f64, dt: f64, err: f64, ms: f64) -> ResultRow 
         params: String::new(),
         segments: Some(segments),
         dt: Some(dt),
-        status: "ok".into(),
-        end: "settled".into(),
-        steps: Some(2000.0),
-        sim_time_s: Some(2000.0 * dt),
-        ms_per_step_median: Some(ms),
-        ms_per_step_p95: Some(ms * 1.3),
-        steps_per_s: Some(1000.0 / ms),
-        real_time_factor: Some(dt * 1000.0 / ms),
-        solver_iters_mean: Some(3.5),
-        solver_iters_max: Some(7.0),
-        peak_rss_mb: Some(12.5),
-        build_ms: Some(0.4),
-        stable: Some(true),
         primary_error: "tip_error_rel".into(),
         run_dir: format!("runs/cantilever-gravity/{model}/segments-{segments}-dt-{dt}"),
         metrics,
+        outcome: Outcome {
+            status: Status::Ok,
+            end: End::Settled,
+            steps: Some(2000.0),
+            sim_time_s: Some(2000.0 * dt),
+            ms_per_step_median: Some(ms),
+            ms_per_step_p95: Some(ms * 1.3),
+            steps_per_s: Some(1000.0 / ms),
+            real_time_factor: Some(dt * 1000.0 / ms),
+            solver_iters_mean: Some(3.5),
+            solver_iters_max: Some(7.0),
+            peak_rss_mb: Some(12.5),
+            build_ms: Some(0.4),
+            stable: Some(true),
+            ..Outcome::default()
+        },
         ..ResultRow::default()
     }
 }
@@ -58,12 +61,12 @@ pub fn rows() -> Vec<ResultRow> {
         for &n in &[10.0, 20.0, 40.0, 80.0] {
             if n == 80.0 && dt == 1e-3 {
                 let mut r = rod_row("der", n, dt, 0.0, 0.0);
-                r.status = "unstable".into();
+                r.status = Status::Unstable;
                 r.reason = UNSTABLE_REASON.into();
                 r.stable = Some(false);
                 r.watchdog = "energy".into();
                 r.watchdog_t = Some(0.12);
-                r.end = "".into();
+                r.end = End::Unset;
                 r.metrics.clear();
                 r.ms_per_step_median = Some(0.21);
                 r.ms_per_step_p95 = Some(0.3);
@@ -84,7 +87,7 @@ pub fn rows() -> Vec<ResultRow> {
         rows.push(rod_row("pbd-rod", n, 1e-3, err, ms));
     }
     let mut failed = rod_row("pbd-rod", 5.0, 1e-3, 0.0, 0.0);
-    failed.status = "failed".into();
+    failed.status = Status::Failed;
     failed.reason = FAILED_REASON.into();
     failed.metrics.clear();
     failed.ms_per_step_median = None;
@@ -92,7 +95,7 @@ pub fn rows() -> Vec<ResultRow> {
     failed.real_time_factor = None;
     failed.steps = None;
     failed.stable = None;
-    failed.end = String::new();
+    failed.end = End::Unset;
     failed.run_dir = String::new();
     rows.push(failed);
     let unsupported = ResultRow {
@@ -103,9 +106,12 @@ pub fn rows() -> Vec<ResultRow> {
         fidelity: "segments=20;dt=0.001".into(),
         segments: Some(20.0),
         dt: Some(1e-3),
-        status: "unsupported".into(),
-        reason: UNSUPPORTED_REASON.into(),
         primary_error: "tip_error_rel".into(),
+        outcome: Outcome {
+            status: Status::Unsupported,
+            reason: UNSUPPORTED_REASON.into(),
+            ..Outcome::default()
+        },
         ..ResultRow::default()
     };
     rows.push(unsupported);
@@ -124,14 +130,17 @@ pub fn rows() -> Vec<ResultRow> {
             params: "pressure=2000".into(),
             mesh_level: Some(l),
             dt: Some(0.01),
-            status: "ok".into(),
-            end: "settled".into(),
-            ms_per_step_median: Some(0.05 * cells.powi(3)),
-            ms_per_step_p95: Some(0.06 * cells.powi(3)),
-            real_time_factor: Some(0.01 / (0.05e-3 * cells.powi(3))),
-            stable: Some(true),
             primary_error: "displacement_error_l2_m".into(),
             metrics,
+            outcome: Outcome {
+                status: Status::Ok,
+                end: End::Settled,
+                ms_per_step_median: Some(0.05 * cells.powi(3)),
+                ms_per_step_p95: Some(0.06 * cells.powi(3)),
+                real_time_factor: Some(0.01 / (0.05e-3 * cells.powi(3))),
+                stable: Some(true),
+                ..Outcome::default()
+            },
             ..ResultRow::default()
         });
     }
@@ -144,9 +153,12 @@ pub fn rows() -> Vec<ResultRow> {
         params: "pressure=2000".into(),
         mesh_level: Some(2.0),
         dt: Some(0.01),
-        status: "unsupported".into(),
-        reason: TISSUE_UNSUPPORTED.into(),
         primary_error: "displacement_error_l2_m".into(),
+        outcome: Outcome {
+            status: Status::Unsupported,
+            reason: TISSUE_UNSUPPORTED.into(),
+            ..Outcome::default()
+        },
         ..ResultRow::default()
     });
     rows

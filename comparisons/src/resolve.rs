@@ -1,0 +1,121 @@
+//! One run, resolved and validated once: scenario and model looked up,
+//! parameters resolved, the fidelity's model extras checked, the scenario
+//! instantiated, the model asked once whether it supports the scene, and the
+//! model's default fidelity merged under the request.
+//!
+//! The CLI (`run-one`, `haptic`, `gate-workload`), the gate, the benches and
+//! the comparison's job list all start from a [`ResolvedRun`].
+
+use crate::registry;
+use crate::runner::{self, RunOptions, RunSummary};
+use crate::scenario::{Params, Scenario, ScenarioRun, UsageError};
+use surgbench_core::{Fidelity, Model, ModelFactory, Scene};
+
+/// A scenario x model x parameters x fidelity, ready to build and run.
+pub struct ResolvedRun {
+    /// The scenario.
+    pub scenario: &'static dyn Scenario,
+    /// The model's factory.
+    pub factory: &'static dyn ModelFactory,
+    /// Resolved scenario parameters.
+    pub params: Params,
+    /// The fidelity as requested (what the scene was instantiated at).
+    pub requested: Fidelity,
+    /// The instantiated scenario (scene and reference).
+    pub run: ScenarioRun,
+    /// The model's answer to `check(scene)`: `Err(reason)` when it cannot run it.
+    pub support: Result<(), String>,
+    /// The full fidelity: the model's defaults for the scene overlaid with the request.
+    pub fidelity: Fidelity,
+}
+
+impl ResolvedRun {
+    /// Resolve `scenario` x `model` with parameter `overrides` at `fidelity`;
+    /// an unknown id, parameter or knob, or an out-of-range value, is a
+    /// [`UsageError`]. A scene the model does not support is not an error:
+    /// see [`ResolvedRun::support`].
+    pub fn new(
+        scenario: &str,
+        model: &str,
+        overrides: &[(String, f64)],
+        fidelity: Fidelity,
+    ) -> Result<Self, UsageError> {
+        let sc = registry::scenario(scenario)?;
+        let factory = registry::model(model)?;
+        let params = Params::resolve(sc.id(), sc.params(), overrides)?;
+        fidelity
+            .check_extras(factory.fidelity_keys())
+            .map_err(|e| UsageError(format!("model `{model}`: {}", e.0)))?;
+        let run = sc.instantiate_at(&params, &fidelity)?;
+        let support = factory.check(run.scene()).map_err(|u| u.reason);
+        let full = factory.default_fidelity(run.scene()).merged(&fidelity);
+        Ok(Self {
+            scenario: sc,
+            factory,
+            params,
+            requested: fidelity,
+            run,
+            support,
+            fidelity: full,
+        })
+    }
+
+    /// [`ResolvedRun::new`] from `KEY=VALUE` fidelity pairs.
+    pub fn from_pairs<S: AsRef<str>>(
+        scenario: &str,
+        model: &str,
+        overrides: &[(String, f64)],
+        fidelity: &[S],
+    ) -> Result<Self, UsageError> {
+        let fid = Fidelity::parse_pairs(fidelity).map_err(|e| UsageError(e.0))?;
+        Self::new(scenario, model, overrides, fid)
+    }
+
+    /// [`ResolvedRun::new`] from fidelity knobs by name.
+    pub fn from_knobs<'a>(
+        scenario: &str,
+        model: &str,
+        overrides: &[(String, f64)],
+        knobs: impl IntoIterator<Item = (&'a String, &'a f64)>,
+    ) -> Result<Self, UsageError> {
+        let mut fid = Fidelity::default();
+        for (k, v) in knobs {
+            fid.set(k, *v).map_err(|e| UsageError(e.0))?;
+        }
+        Self::new(scenario, model, overrides, fid)
+    }
+
+    /// The scene.
+    pub fn scene(&self) -> &Scene {
+        self.run.scene()
+    }
+
+    /// A fresh model at the full fidelity, for callers that need one to go
+    /// on: an unsupported scene (`"der cannot run lame-tube: ..."`) or a
+    /// failed build is a [`UsageError`].
+    pub fn build(&self) -> Result<Box<dyn Model>, UsageError> {
+        if let Err(reason) = &self.support {
+            return Err(UsageError(format!(
+                "{} cannot run {}: {reason}",
+                self.factory.id(),
+                self.scenario.id()
+            )));
+        }
+        self.factory
+            .build(self.scene(), &self.fidelity)
+            .map_err(|e| UsageError(e.to_string()))
+    }
+
+    /// Run it with the runner (timing, watchdogs, scoring).
+    pub fn run(&self, opts: &RunOptions) -> Result<RunSummary, UsageError> {
+        runner::run_checked(
+            self.scenario,
+            &self.params,
+            &self.run,
+            self.factory,
+            self.support.clone(),
+            &self.fidelity,
+            opts,
+        )
+    }
+}

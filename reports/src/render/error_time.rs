@@ -1,0 +1,88 @@
+//! The error-over-time plot of one group, from the runs' `observables.csv`.
+
+use std::path::Path;
+
+use super::{Group, PLOT_SIZE, Section, Styles, or_unknown, run_label};
+use crate::analysis::finest;
+use crate::figure::{Axis, Figure, LegendEntry, Line, Panel, SeriesSpec};
+use crate::{Status, read_series};
+
+/// Error over time from `observables.csv` of each model's finest ok run.
+pub(super) fn error_time_figure(dir: &Path, g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figure, String)> {
+    let mut series = Vec::new();
+    let mut legend = Vec::new();
+    for model in &g.models {
+        let rows = g.model_rows(model);
+        let Some(r) = finest(rows.iter().copied().filter(|r| r.status == Status::Ok)) else {
+            continue;
+        };
+        if r.run_dir.trim().is_empty() {
+            sec.notes.push(format!(
+                "Error over time: {} has no run folder, so no time series.",
+                run_label(r)
+            ));
+            continue;
+        }
+        let path = dir.join(&r.run_dir).join("observables.csv");
+        let s = match read_series(&path) {
+            Ok(s) => s,
+            Err(e) => {
+                sec.notes
+                    .push(format!("Error over time: no curve for {}: {e}.", run_label(r)));
+                continue;
+            }
+        };
+        let pts: Vec<(f64, f64)> =
+            s.t.iter()
+                .zip(&s.error)
+                .filter(|(t, e)| t.is_finite() && e.is_finite() && **e > 0.0)
+                .map(|(t, e)| (*t, *e))
+                .collect();
+        let skipped = s.t.len() - pts.len();
+        if pts.is_empty() {
+            sec.notes.push(format!(
+                "Error over time: {} has no positive error sample in {} ({} samples).",
+                run_label(r),
+                path.display(),
+                s.t.len()
+            ));
+            continue;
+        }
+        if skipped > 0 {
+            sec.notes.push(format!(
+                "Error over time: {skipped} of {} samples of {} are empty, zero or negative and not drawn (log axis).",
+                s.t.len(),
+                run_label(r)
+            ));
+        }
+        // About ten markers per curve so models stay apart in grey scale.
+        let step = (pts.len() / 10).max(1);
+        let marks: Vec<(f64, f64)> = pts.iter().copied().step_by(step).collect();
+        let look = st.look(model, 0, Line::Solid);
+        legend.push(LegendEntry {
+            look,
+            label: run_label(r),
+        });
+        series.push(SeriesSpec {
+            look,
+            points: marks,
+            line_points: pts,
+        });
+    }
+    if series.is_empty() {
+        return None;
+    }
+    let fig = Figure {
+        title: format!("{}: {} over time (finest ok run)", g.title, or_unknown(&g.metric)),
+        panels: vec![Panel {
+            title: String::new(),
+            x: Axis::linear("simulated time t [s]"),
+            y: Axis::log(format!("{} (log)", g.metric_label())),
+            series,
+        }],
+        legend,
+        size: PLOT_SIZE,
+    };
+    let alt = format!("{}: error over simulated time for each model's finest ok run", g.title);
+    Some((fig, alt))
+}

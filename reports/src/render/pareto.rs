@@ -1,0 +1,172 @@
+//! The speed-against-error plot of one group, with its Pareto front.
+
+use super::{Group, PLOT_SIZE, Section, Styles, run_label, usable};
+use crate::figure::{Axis, FAIL_GREY, Figure, LegendEntry, Line, Look, Panel, SeriesSpec};
+use crate::format::fmt_sig;
+use crate::{End, ResultRow, Status, pareto_front};
+
+/// The speed axis of a group: a run's cost, its name and the axis label.
+struct Cost {
+    of: fn(&ResultRow) -> Option<f64>,
+    name: &'static str,
+    axis: &'static str,
+    /// A static scene: the cost is the wall time to the solution.
+    is_static: bool,
+}
+
+impl Cost {
+    /// Static scenes (every ok run ends settled or at its time limit):
+    /// models take different dt and step counts to the same equilibrium, so
+    /// the fair cost is the wall time to the solution, not the time per step.
+    /// (Older results.csv files have no solve_wall_s: they keep ms/step.)
+    fn of_group(g: &Group) -> Self {
+        let ok: Vec<&ResultRow> = g.rows.iter().copied().filter(|r| r.status == Status::Ok).collect();
+        let is_static = !ok.is_empty()
+            && ok
+                .iter()
+                .all(|r| matches!(r.end, End::Settled | End::TimeLimit) && r.solve_wall_s.is_some());
+        if is_static {
+            Cost {
+                of: |r| r.solve_wall_s,
+                name: "time to solution (s)",
+                axis: "wall time to solution [s] (log)",
+                is_static,
+            }
+        } else {
+            Cost {
+                of: |r| r.ms_per_step_median,
+                name: "ms/step",
+                axis: "median wall time per step [ms] (log)",
+                is_static,
+            }
+        }
+    }
+}
+
+/// Ok runs the plot leaves out, by why.
+#[derive(Default)]
+struct Omitted {
+    missing: Vec<String>,
+    nonpos: Vec<String>,
+}
+
+/// (cost, error) of `model`'s ok runs that a log-log plot can show; the
+/// others go to `omitted`.
+fn model_points(g: &Group, model: &str, cost: &Cost, omitted: &mut Omitted) -> Vec<(f64, f64)> {
+    let cost_name = cost.name;
+    let mut pts = Vec::new();
+    for r in g.model_rows(model).into_iter().filter(|r| r.status == Status::Ok) {
+        match ((cost.of)(r), g.err(r)) {
+            (Some(t), Some(e)) => {
+                if usable(Some(t)).is_some() && usable(Some(e)).is_some() {
+                    pts.push((t, e));
+                } else {
+                    omitted.nonpos.push(format!(
+                        "{} ({cost_name} = {}, {} = {})",
+                        run_label(r),
+                        fmt_sig(t, 3),
+                        g.metric,
+                        fmt_sig(e, 3)
+                    ));
+                }
+            }
+            (t, e) => omitted.missing.push(format!(
+                "{} (no {})",
+                run_label(r),
+                if t.is_none() && e.is_none() {
+                    format!("{cost_name} and no {}", g.metric)
+                } else if t.is_none() {
+                    cost_name.to_string()
+                } else {
+                    g.metric.clone()
+                }
+            )),
+        }
+    }
+    pts
+}
+
+/// The notes that name the ok runs the plot leaves out.
+fn omission_notes(omitted: &Omitted, sec: &mut Section) {
+    if !omitted.nonpos.is_empty() {
+        sec.notes.push(format!(
+            "Speed/error plot omits ok runs with a zero, negative or non-finite value (a log axis cannot show them): {}.",
+            omitted.nonpos.join("; ")
+        ));
+    }
+    if !omitted.missing.is_empty() {
+        sec.notes.push(format!(
+            "Speed/error plot omits ok runs without a value: {}.",
+            omitted.missing.join("; ")
+        ));
+    }
+}
+
+/// Speed vs error: every ok run a point, each model's Pareto front a line.
+pub(super) fn pareto_figure(g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figure, String)> {
+    if g.metric.is_empty() {
+        sec.notes
+            .push("No speed/error plot: no row names a primary error metric.".into());
+        return None;
+    }
+    let cost = Cost::of_group(g);
+    let mut series = Vec::new();
+    let mut legend = Vec::new();
+    let mut omitted = Omitted::default();
+    for model in &g.models {
+        let pts = model_points(g, model, &cost, &mut omitted);
+        if pts.is_empty() {
+            continue;
+        }
+        let mut front: Vec<(f64, f64)> = pareto_front(&pts).into_iter().map(|i| pts[i]).collect();
+        front.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let look = st.look(model, 0, Line::Solid);
+        legend.push(LegendEntry {
+            look,
+            label: format!("{model} ({} runs, {} on front)", pts.len(), front.len()),
+        });
+        series.push(SeriesSpec {
+            look,
+            points: pts,
+            line_points: front,
+        });
+    }
+    omission_notes(&omitted, sec);
+    if series.is_empty() {
+        sec.notes.push(format!(
+            "No speed/error plot: no ok run has both a positive {} and a positive {}.",
+            cost.name, g.metric
+        ));
+        return None;
+    }
+    legend.push(LegendEntry {
+        look: Look {
+            color: FAIL_GREY,
+            marker: None,
+            line: Line::Solid,
+        },
+        label: "line: the model's Pareto front (no run is both faster and more accurate)".into(),
+    });
+    let fig = Figure {
+        title: format!("{}: speed vs {}", g.title, g.metric),
+        panels: vec![Panel {
+            title: String::new(),
+            x: Axis::log(cost.axis),
+            y: Axis::log(format!("{} (log)", g.metric_label())),
+            series,
+        }],
+        legend,
+        size: PLOT_SIZE,
+    };
+    let alt = format!(
+        "{}: speed ({}) vs {}, one point per ok run",
+        g.title, cost.name, g.metric
+    );
+    if cost.is_static {
+        sec.notes.push(
+            "Static scene: the speed axis is the wall time to the solution (all steps to settling), since models reach the same equilibrium with different step sizes and counts."
+                .into(),
+        );
+    }
+    Some((fig, alt))
+}

@@ -1,0 +1,304 @@
+//! The report's tables and the page that ties them to the plots.
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use super::{Group, Section, Styles, or_unknown, usable};
+use crate::RunInfo;
+use crate::analysis::finest;
+use crate::doc::{Block, Cell};
+use crate::format::fmt_sig;
+use crate::{End, ResultRow, Status};
+
+fn num(v: Option<f64>) -> String {
+    v.map(|x| fmt_sig(x, 3)).unwrap_or_else(|| "—".into())
+}
+
+fn status_counts<'a>(rows: impl Iterator<Item = &'a ResultRow>) -> String {
+    let mut c: BTreeMap<&str, usize> = BTreeMap::new();
+    let mut n = 0;
+    for r in rows {
+        *c.entry(if r.status == Status::Unset {
+            "(no status)"
+        } else {
+            r.status.as_str()
+        })
+        .or_default() += 1;
+        n += 1;
+    }
+    let mut parts: Vec<String> = ["ok", "unstable", "failed", "timeout", "unsupported"]
+        .iter()
+        .filter_map(|s| c.remove(s).map(|k| format!("{k} {s}")))
+        .collect();
+    parts.extend(c.iter().map(|(s, k)| format!("{k} {s}")));
+    format!("{n} runs: {}", parts.join(", "))
+}
+
+fn reason_text(r: &ResultRow) -> String {
+    let reason = r.reason.trim();
+    let reason = if reason.is_empty() { "(no reason given)" } else { reason };
+    format!("{}: {}", or_unknown(r.status.as_str()), reason)
+}
+
+fn reason_only(r: &ResultRow) -> String {
+    let reason = r.reason.trim();
+    if reason.is_empty() {
+        "(no reason given)".into()
+    } else {
+        reason.to_string()
+    }
+}
+
+fn stable_text(r: &ResultRow) -> String {
+    let wd = r.watchdog.trim();
+    let at = r
+        .watchdog_t
+        .map(|t| format!(" at t = {} s", fmt_sig(t, 3)))
+        .unwrap_or_default();
+    match r.stable {
+        Some(true) if wd.is_empty() => "yes".into(),
+        Some(true) => format!("yes ({wd}{at})"),
+        Some(false) if wd.is_empty() => format!("no{at}"),
+        Some(false) => format!("no: {wd}{at}"),
+        None if wd.is_empty() => "—".into(),
+        None => format!("{wd}{at}"),
+    }
+}
+
+fn scenario_table(g: &Group) -> Block {
+    let ok: Vec<&ResultRow> = g.rows.iter().copied().filter(|r| r.status == Status::Ok).collect();
+    let best_err = ok.iter().filter_map(|r| usable(g.err(r))).fold(f64::INFINITY, f64::min);
+    let best_t = ok
+        .iter()
+        .filter_map(|r| usable(r.ms_per_step_median))
+        .fold(f64::INFINITY, f64::min);
+    let header = vec![
+        "model".into(),
+        "fidelity".into(),
+        "status".into(),
+        if g.metric.is_empty() {
+            "primary error".into()
+        } else {
+            g.metric_label()
+        },
+        "ms/step median".into(),
+        "ms/step p95".into(),
+        "real-time factor".into(),
+        "solver iters mean / max".into(),
+        "stable / watchdog".into(),
+        "end".into(),
+    ];
+    let mut rows = Vec::new();
+    for r in &g.rows {
+        let is_ok = r.status == Status::Ok;
+        let err_cell = if is_ok {
+            match g.err(r) {
+                Some(e) => Cell {
+                    text: fmt_sig(e, 3),
+                    bold: e == best_err,
+                    warn: false,
+                },
+                None => Cell::plain("— (not reported)"),
+            }
+        } else {
+            // The status column says what happened; here goes why.
+            Cell {
+                text: reason_only(r),
+                bold: false,
+                warn: true,
+            }
+        };
+        let t_cell = Cell {
+            text: num(r.ms_per_step_median),
+            bold: is_ok && r.ms_per_step_median == Some(best_t),
+            warn: false,
+        };
+        let iters = match (r.solver_iters_mean, r.solver_iters_max) {
+            (None, None) => "—".into(),
+            (a, b) => format!("{} / {}", num(a), num(b)),
+        };
+        rows.push(vec![
+            Cell::plain(&r.model),
+            Cell::plain(if r.fidelity.is_empty() {
+                "(default)"
+            } else {
+                r.fidelity.as_str()
+            }),
+            Cell {
+                text: or_unknown(r.status.as_str()).to_string(),
+                bold: false,
+                warn: !is_ok,
+            },
+            err_cell,
+            t_cell,
+            Cell::plain(num(r.ms_per_step_p95)),
+            Cell::plain(num(r.real_time_factor)),
+            Cell::plain(iters),
+            Cell::plain(stable_text(r)),
+            Cell::plain(if r.end == End::Unset { "—" } else { r.end.as_str() }),
+        ]);
+    }
+    Block::Table { header, rows }
+}
+
+fn summary_table(groups: &[Group], st: &Styles) -> Block {
+    let mut header = vec!["scenario".to_string(), "primary error".to_string()];
+    header.extend(st.models.iter().cloned());
+    let mut rows = Vec::new();
+    for g in groups {
+        let mut row = vec![Cell::plain(&g.title), Cell::plain(or_unknown(&g.metric))];
+        for model in &st.models {
+            let mr = g.model_rows(model);
+            let cell = match finest(mr.iter().copied()) {
+                None => Cell::plain("not run"),
+                Some(r) if r.status == Status::Ok => {
+                    let e = g
+                        .err(r)
+                        .map(|e| fmt_sig(e, 3))
+                        .unwrap_or_else(|| "no error value".into());
+                    Cell::plain(format!(
+                        "{e} at {} ms/step ({})",
+                        num(r.ms_per_step_median),
+                        if r.fidelity.is_empty() {
+                            "default"
+                        } else {
+                            r.fidelity.as_str()
+                        }
+                    ))
+                }
+                Some(r) => Cell {
+                    text: format!(
+                        "{} ({})",
+                        reason_text(r),
+                        if r.fidelity.is_empty() {
+                            "default"
+                        } else {
+                            r.fidelity.as_str()
+                        }
+                    ),
+                    bold: false,
+                    warn: true,
+                },
+            };
+            row.push(cell);
+        }
+        rows.push(row);
+    }
+    Block::Table { header, rows }
+}
+
+/// The page header's table: where, when and how the comparison ran.
+fn run_table(info: &RunInfo) -> Block {
+    let versions: Vec<String> = info.crate_versions.iter().map(|(k, v)| format!("{k} {v}")).collect();
+    let kv = |k: &str, v: String| vec![Cell::plain(k), Cell::plain(v)];
+    Block::Table {
+        header: vec!["run".into(), "".into()],
+        rows: vec![
+            kv("comparison", or_unknown(&info.comparison).into()),
+            kv("date", or_unknown(&info.date).into()),
+            kv("commit", or_unknown(&info.commit).into()),
+            kv("machine", or_unknown(&info.machine).into()),
+            kv("cores / threads", format!("{} / {}", info.cores, info.threads)),
+            kv("rustc", or_unknown(&info.rustc).into()),
+            kv("command", or_unknown(&info.command).into()),
+            kv("quick", if info.quick { "yes" } else { "no" }.into()),
+            kv("wall time [s]", fmt_sig(info.wall_s, 3)),
+            kv(
+                "crate versions",
+                if versions.is_empty() {
+                    "(unknown)".into()
+                } else {
+                    versions.join(", ")
+                },
+            ),
+        ],
+    }
+}
+
+/// One scenario's section: counts, table, other metrics, orders, plots, notes.
+fn scenario_section(g: &Group, sec: &Section) -> Vec<Block> {
+    let mut b = Vec::new();
+    b.push(Block::Heading(2, format!("Scenario: {}", g.title)));
+    b.push(Block::Para(format!(
+        "{}. Primary error: {}.",
+        status_counts(g.rows.iter().copied()),
+        if g.metric.is_empty() {
+            "(none named)".to_string()
+        } else {
+            g.metric_label()
+        }
+    )));
+    if !g.metric_notes.is_empty() {
+        b.push(Block::List(g.metric_notes.clone()));
+    }
+    b.push(scenario_table(g));
+    let others: BTreeSet<&str> = g
+        .rows
+        .iter()
+        .flat_map(|r| r.metrics.keys().map(String::as_str))
+        .filter(|m| *m != g.metric)
+        .collect();
+    if !others.is_empty() {
+        b.push(Block::Para(format!(
+            "Other metrics of this scenario (in results.csv): {}.",
+            others.into_iter().collect::<Vec<_>>().join(", ")
+        )));
+    }
+    if !sec.orders.is_empty() {
+        b.push(Block::Heading(3, "Observed convergence order".into()));
+        b.push(Block::List(sec.orders.clone()));
+    }
+    if !sec.images.is_empty() {
+        b.push(Block::Heading(3, "Plots".into()));
+        for (stem, alt) in &sec.images {
+            b.push(Block::Image {
+                svg: format!("plots/{stem}.svg"),
+                png: format!("plots/{stem}.png"),
+                alt: alt.clone(),
+            });
+        }
+    }
+    if !sec.notes.is_empty() {
+        b.push(Block::Heading(3, "Notes".into()));
+        b.push(Block::List(sec.notes.clone()));
+    }
+    b
+}
+
+/// The whole page: header, summary table, one section per scenario.
+pub(super) fn page(
+    info: &RunInfo,
+    rows: &[ResultRow],
+    groups: &[Group],
+    sections: &[Section],
+    st: &Styles,
+) -> Vec<Block> {
+    let mut b = vec![Block::Heading(
+        1,
+        format!("surgbench report: {}", or_unknown(&info.comparison)),
+    )];
+    if info.quick {
+        b.push(Block::Warning(
+            "quick run: reduced sweeps and durations. Use it to check the pipeline, not to publish numbers.".into(),
+        ));
+    }
+    b.push(run_table(info));
+    b.push(Block::Para(format!(
+        "{}. Units are SI (m, kg, s, N, Pa, rad) unless a column says otherwise; wall times are in ms per step. \
+         Tables round to 3 significant digits, results.csv holds every value at full precision, and the command surgbench report DIR \
+         re-renders this page from results.csv (and summary.json). In each scenario table the lowest error and the fastest \
+         ms/step among ok runs are bold; runs that are not ok show their reason in place of the error.",
+        status_counts(rows.iter())
+    )));
+
+    b.push(Block::Heading(2, "Summary: finest fidelity of each model".into()));
+    b.push(Block::Para(
+        "Each cell: the primary error and ms/step of the model's finest run in the scenario, or its status and reason when that run is not ok."
+            .into(),
+    ));
+    b.push(summary_table(groups, st));
+
+    for (g, sec) in groups.iter().zip(sections) {
+        b.extend(scenario_section(g, sec));
+    }
+    b
+}
