@@ -173,7 +173,7 @@ fn rigid_motion_of_the_scene_moves_the_answer_rigidly() {
             2.0 * std::f64::consts::PI / 3.0,
         ),
     );
-    assert!(surgbench_core::scene::axis_permutation(&permuting).is_some());
+    assert!(surgbench_core::frames::axis_permutation(&permuting).is_some());
     for r in registry::models() {
         for (sid, scene) in supported(r.factory) {
             let rollers = scene.tissues().any(|t| !t.partial_fixed.is_empty());

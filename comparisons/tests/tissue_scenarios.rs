@@ -17,7 +17,8 @@ use surgbench_comparisons::scenarios::tissue::{
     self, BlockCompression, BlockReference, CubeFrame, LameTube, TRUTH_CUBE_EDGE, TruthCube, VolumePreservation,
 };
 use surgbench_comparisons::scenarios::vessel::datasets_dir;
-use surgbench_core::mesh::{self, truth_cube};
+use surgbench_core::io::truth_cube;
+use surgbench_core::mesh;
 use surgbench_core::rng::SplitMix64;
 use surgbench_core::{Capability, Family, Fidelity, Mat3, Observation, TetMesh, TissueObs, Vec3};
 

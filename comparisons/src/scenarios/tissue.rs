@@ -33,7 +33,8 @@ use std::collections::{BTreeMap, HashSet};
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
-use surgbench_core::mesh::{self, truth_cube};
+use surgbench_core::io::truth_cube;
+use surgbench_core::mesh;
 use surgbench_core::{
     Body, ControlKey, ControlTimeline, Family, Fidelity, Mat3, Observation, Scene, Settle, SolidMaterial, TetMesh,
     TissueBody, TissueObs, Vec3,

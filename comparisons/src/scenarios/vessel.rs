@@ -27,10 +27,11 @@ use std::collections::BTreeMap;
 use std::f64::consts::PI;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
+use surgbench_core::flow::PoiseuilleFlow;
 use surgbench_core::haptic::Session;
 use surgbench_core::motion::{CardiacMotion, VesselMotion};
 use surgbench_core::sdf::{CenterlineBuilder, Sdf, StraightTube, SweptTube};
-use surgbench_core::vessel::{self, PoiseuilleFlow, Vessel};
+use surgbench_core::vessel::{self, Vessel};
 use surgbench_core::{
     ContactParams, ControlKey, ControlTimeline, Family, Fidelity, Iso3, LoadRamp, Observation, RodBody, RodSection,
     Scene, Settle, Vec3,

@@ -31,8 +31,8 @@ use crate::mapping::BetaMapping;
 use crate::rules::{LinkParams, box_violation, friction_correction, project_into_box, relaxation_target};
 use crate::volume::VesselLattice;
 use std::sync::Arc;
+use surgbench_core::flow::FlowField;
 use surgbench_core::frames::{parallel_transport, rotate_about};
-use surgbench_core::scene::FlowField;
 use surgbench_core::{
     ContactObs, DeviceCommand, Iso3, Mat3, Model, Observation, RodBody, RodObs, Sdf, SimError, StepStats, Vec3,
 };

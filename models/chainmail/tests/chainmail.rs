@@ -5,7 +5,7 @@ use std::sync::Arc;
 use surgbench_chainmail::mapping::{self, BETA_CONSTANT};
 use surgbench_chainmail::rules::{self, LinkParams};
 use surgbench_chainmail::{BoxFrame, ChainmailFactory, ChainmailWire, WireConfig};
-use surgbench_core::scene::FlowField;
+use surgbench_core::flow::FlowField;
 use surgbench_core::sdf::StraightTube;
 use surgbench_core::{BuildError, DeviceCommand, Fidelity, Iso3, Mat3, ModelFactory, RodBody, Scene, SimError, Vec3};
 

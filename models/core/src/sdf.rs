@@ -30,7 +30,7 @@
 //! assert!((tube.distance(&Vec3::new(0.005, 0.0, 3e-3)) - 1e-3).abs() < 1e-15);
 //! ```
 
-use crate::vessel::TriSurface;
+use crate::io::TriSurface;
 use crate::{Iso3, Mat3, Vec3};
 use std::fmt;
 use std::io::{Read, Write};

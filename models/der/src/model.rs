@@ -1,6 +1,7 @@
 //! The harness contract: [`DerFactory`] and [`DerModel`].
 
 use crate::rod::{DEFAULT_FRICTION_CREEP, DEFAULT_SUBSTEP_DEPTH, DerParams, DerRod, Integrator, TwistDynamics};
+use surgbench_core::beam::first_bending_frequency;
 use surgbench_core::{
     BuildError, Capability, DeviceCommand, EnergyProbe, Family, Fidelity, FidelityKey, Model, ModelFactory,
     Observation, Scene, SimError, StepStats, Unsupported,
@@ -72,13 +73,12 @@ impl DerModel {
     }
 }
 
-/// First cantilever bending period `2 pi / (1.8751^2 sqrt(EI / (rho A L^4)))`
-/// (s) of the base section, used to pick the statics time step.
+/// First cantilever bending period `2 pi / omega_1` (s) of the base section
+/// ([`first_bending_frequency`]), used to pick the statics time step.
 fn first_period(scene: &Scene) -> Option<f64> {
     let rod = scene.rods().next()?;
     let s = rod.section_at(0.0);
-    let w =
-        1.8751f64.powi(2) * (s.youngs_modulus * s.second_moment() / (s.density * s.area() * rod.length.powi(4))).sqrt();
+    let w = first_bending_frequency(s, rod.length);
     let t = 2.0 * std::f64::consts::PI / w;
     t.is_finite().then_some(t)
 }

@@ -111,8 +111,8 @@
 //! quadratic (Morison-type) drag per unit length
 //! `f = rho/2 d (C_n |u_n| u_n + pi C_t |u_t| u_t)`, `u = w - v` the flow
 //! velocity relative to the node, split along the edge tangent (Hoerner,
-//! "Fluid-Dynamic Drag", 1965, ch. 2-3; [`DRAG_NORMAL`] = 1.2,
-//! [`DRAG_TANGENTIAL`] = 0.02, [`BLOOD_DENSITY`] = 1060 kg/m^3). Why
+//! "Fluid-Dynamic Drag", 1965, ch. 2-3; the coefficients and blood density
+//! are in [`surgbench_core::flow`]). Why
 //! quadratic and not resistive-force theory (Gray & Hancock 1955; Lighthill
 //! 1976): the `flow-drift` scene has a wire of d = 0.89 mm in blood
 //! (viscosity ~3.5e-3 Pa s) at up to 0.5 m/s, a cylinder Reynolds number
@@ -130,9 +130,9 @@ use crate::band::BandMatrix;
 use crate::energy::{self, Stencil, VertexParams, VertexTerms};
 use std::sync::Arc;
 use surgbench_core::contact::LaggedFriction;
+use surgbench_core::flow::{BLOOD_DENSITY, DRAG_NORMAL, DRAG_TANGENTIAL, FlowField};
 use surgbench_core::frames::rotate_about;
 use surgbench_core::motion::carried;
-use surgbench_core::scene::FlowField;
 use surgbench_core::{
     BuildError, ContactObs, ContactParams, DeviceCommand, EnergyObs, EnergyProbe, Environment, Iso3, LoadRamp, Mat3,
     RodBody, RodObs, Sdf, SimError, StepStats, Vec3,
@@ -145,17 +145,6 @@ const BAND: usize = 10;
 /// Default [`DerParams::friction_creep`] (m/s): 1 um/s, so a wire held by
 /// static friction creeps less than 1 um in a second of simulated time.
 pub const DEFAULT_FRICTION_CREEP: f64 = 1e-6;
-
-/// Blood density used by the flow drag (kg/m^3).
-pub const BLOOD_DENSITY: f64 = 1060.0;
-/// Normal (cross-flow) drag coefficient of a cylinder, on the projected
-/// area `d` per unit length: about 1.2 for cylinder Reynolds numbers 10 to
-/// 1e5 (Hoerner, "Fluid-Dynamic Drag", 1965, ch. 3). An approximation.
-pub const DRAG_NORMAL: f64 = 1.2;
-/// Tangential (axial skin-friction) drag coefficient of a long cylinder, on
-/// the wetted area `pi d` per unit length: order 0.01-0.02 (Hoerner 1965,
-/// ch. 2; the value used for cables). An approximation.
-pub const DRAG_TANGENTIAL: f64 = 0.02;
 
 /// Default [`DerParams::max_substep_depth`]: down to `dt / 64`.
 pub const DEFAULT_SUBSTEP_DEPTH: usize = 6;

@@ -38,11 +38,12 @@
 
 use crate::FemError;
 use crate::assembly::{LinearSolver, Ordering, System};
-use crate::contact::{DEFAULT_KAPPA, SphereContact};
+use crate::contact::SphereContact;
 use crate::core::Solid;
 use crate::element::Jacobian;
 use crate::material::{Law, M3};
 use crate::statics::{Constraint, StaticParams, dof_conditions, equilibrate};
+use surgbench_core::sphere_contact::DEFAULT_KAPPA;
 use surgbench_core::{
     BuildError, Capability, DeviceCommand, EnergyObs, EnergyProbe, Family, Fidelity, FidelityKey, Model, ModelFactory,
     Observation, Scene, SimError, StepStats, TissueBody, TissueObs, Vec3,

@@ -44,6 +44,7 @@
 //!
 //! Units: positions m, volumes m^3, energies J, forces N.
 
+use surgbench_core::material::lame;
 use surgbench_core::{Mat3, Vec3};
 
 use crate::kdtree::KdTree;
@@ -81,13 +82,6 @@ impl std::fmt::Display for DiscretizationError {
             ),
         }
     }
-}
-
-/// Lamé parameters `(mu, lambda)` (Pa) from Young's modulus (Pa) and Poisson ratio.
-pub fn lame(youngs_modulus: f64, poisson_ratio: f64) -> (f64, f64) {
-    let mu = youngs_modulus / (2.0 * (1.0 + poisson_ratio));
-    let lam = youngs_modulus * poisson_ratio / ((1.0 + poisson_ratio) * (1.0 - 2.0 * poisson_ratio));
-    (mu, lam)
 }
 
 /// Conditioning `lambda_min / lambda_max` of node `i`'s moment matrix

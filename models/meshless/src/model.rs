@@ -86,12 +86,13 @@ use surgbench_core::{
     ModelFactory, Observation, Scene, SimError, StepStats, TissueBody, TissueObs, Unsupported, Vec3,
 };
 
-use crate::contact::{DEFAULT_KAPPA, SphereContact};
+use crate::contact::SphereContact;
 use crate::elastic::{PointElastic, StateCache, moment_rcond};
 use crate::kdtree::KdTree;
 use crate::mls::MlsMap;
 use crate::pbd::PbdConstraints;
 use crate::pressure::PressureLoad;
+use surgbench_core::sphere_contact::DEFAULT_KAPPA;
 
 /// Fidelity extras of `meshless` (besides `dt` and `iterations` = PBD sweeps).
 pub const MESHLESS_KEYS: &[FidelityKey] = &[

@@ -47,8 +47,9 @@ use std::sync::Arc;
 
 use nalgebra::{Matrix3, Quaternion, UnitQuaternion};
 use surgbench_core::band::BandMatrix;
+use surgbench_core::beam::first_bending_frequency;
+use surgbench_core::flow::{BLOOD_DENSITY, DRAG_NORMAL, FlowField};
 use surgbench_core::motion::carried;
-use surgbench_core::scene::FlowField;
 use surgbench_core::{
     BuildError, Capability, ContactObs, DeviceCommand, EnergyObs, Environment, Family, Fidelity, FidelityKey, Iso3,
     LoadRamp, Mat3, Model, ModelFactory, Observation, RodBody, RodObs, Scene, Sdf, SimError, StepStats, Unsupported,
@@ -63,13 +64,6 @@ type Quat = Quaternion<f64>;
 /// 1-Lipschitz grid ([`surgbench_core::sdf::VoxelSdf`]) has each gradient
 /// component bounded by 1, so `|grad| <= sqrt(3) < 2`.
 pub const SDF_LIPSCHITZ_BOUND: f64 = 2.0;
-
-/// Blood density used for flow drag (kg/m^3).
-pub const BLOOD_DENSITY: f64 = 1060.0;
-/// Drag coefficient of a cylinder in cross flow used for flow drag
-/// (order-one value for Reynolds numbers 10..1e4; Hoerner, "Fluid-Dynamic
-/// Drag", 1965, ch. 3). An approximation, stated as such.
-pub const CYLINDER_DRAG_COEFFICIENT: f64 = 1.2;
 
 /// Fidelity extras of `pbd-rod`.
 pub const ROD_KEYS: &[FidelityKey] = &[
@@ -173,13 +167,11 @@ impl ModelFactory for PbdRodFactory {
         }
         // Static scenes are run to equilibrium with the model's own damping:
         // critical damping of the first cantilever bending mode,
-        // c = 2 omega_1, omega_1 = 1.875^2 sqrt(E I / (rho A L^4)).
+        // c = 2 omega_1 (`surgbench_core::beam::first_bending_frequency`).
         if scene.settle.is_some()
             && let Some(rod) = scene.rods().next()
         {
-            let s = &rod.sections[0];
-            let w1 = 1.875f64.powi(2)
-                * (s.youngs_modulus * s.second_moment() / (s.density * s.area() * rod.length.powi(4))).sqrt();
+            let w1 = first_bending_frequency(&rod.sections[0], rod.length);
             f.extras.insert("damping".into(), 2.0 * w1);
         }
         f
@@ -753,8 +745,7 @@ impl PbdRod {
                 let rel = flow.velocity(&self.x[i]) - v;
                 let rel_n = rel - t * t.dot(&rel);
                 let share = if i == n { 0.5 * self.l } else { self.l };
-                let c =
-                    0.5 * BLOOD_DENSITY * CYLINDER_DRAG_COEFFICIENT * 2.0 * self.radius_node[i] * share * rel_n.norm();
+                let c = 0.5 * BLOOD_DENSITY * DRAG_NORMAL * 2.0 * self.radius_node[i] * share * rel_n.norm();
                 v += rel_n * (1.0 - 1.0 / (1.0 + h * c * self.w[i]));
             }
             self.v[i] = v;

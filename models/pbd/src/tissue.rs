@@ -92,24 +92,8 @@ pub use statics::{StaticInfo, StaticParams};
 use crate::color::{Partition, partition};
 use crate::ghost::{GhostSurface, project_particle_triangle};
 use crate::hash::BoxHash;
-
-/// Signed volume `(1/6) ((p2-p1) x (p3-p1)) . (p4-p1)` of a tet (m^3).
-pub fn tet_volume(p: &[Vec3; 4]) -> f64 {
-    (p[1] - p[0]).cross(&(p[2] - p[0])).dot(&(p[3] - p[0])) / 6.0
-}
-
-/// Gradients of [`tet_volume`] with respect to `p1..p4` (m^2):
-/// `(1/6)(p4-p2) x (p3-p2)`, `(1/6)(p3-p1) x (p4-p1)`,
-/// `(1/6)(p4-p1) x (p2-p1)`, `(1/6)(p2-p1) x (p3-p1)`.
-pub fn tet_volume_gradients(p: &[Vec3; 4]) -> [Vec3; 4] {
-    let s = 1.0 / 6.0;
-    [
-        (p[3] - p[1]).cross(&(p[2] - p[1])) * s,
-        (p[2] - p[0]).cross(&(p[3] - p[0])) * s,
-        (p[3] - p[0]).cross(&(p[1] - p[0])) * s,
-        (p[1] - p[0]).cross(&(p[2] - p[0])) * s,
-    ]
-}
+use surgbench_core::material::lame;
+use surgbench_core::mesh::{tet_volume_gradients, tet_volume_of as tet_volume};
 
 /// One XPBD projection of the volume constraint of a tet: with
 /// `C = V(p) - rest`, `dlambda = -(C + alpha_tilde lambda) / (sum_j w_j
@@ -651,8 +635,7 @@ impl PbdTissue {
             return Err(BuildError::bad("driven_nodes", "displacements must be finite"));
         }
         let m = body.material;
-        let mu = m.youngs_modulus / (2.0 * (1.0 + m.poisson_ratio));
-        let lam = m.youngs_modulus * m.poisson_ratio / ((1.0 + m.poisson_ratio) * (1.0 - 2.0 * m.poisson_ratio));
+        let (mu, lam) = lame(m.youngs_modulus, m.poisson_ratio);
         let x: Vec<Vec3> = body.mesh.nodes.clone();
         let tets: Vec<[u32; 4]> = body.mesh.tets.iter().map(|t| t.map(|i| i as u32)).collect();
         let mut mass = vec![0.0; nn];

@@ -19,7 +19,8 @@
 
 use surgbench_core::{Unsupported, Vec3};
 
-use super::{PbdTissue, tet_volume, tet_volume_gradients};
+use super::PbdTissue;
+use surgbench_core::mesh::{tet_volume_gradients, tet_volume_of as tet_volume};
 
 /// Knobs of [`PbdTissue::static_equilibrium`].
 #[derive(Debug, Clone, Copy, PartialEq)]
