@@ -40,7 +40,7 @@
 //!   on `dt`, `iterations` and `segments`, not only on the material;
 //! - `beta` comes from the material by [`mapping`]: by default
 //!   (`beta_mapping=0`) with one constant calibrated on the gravity
-//!   cantilever ([`mapping::calibration_scene`]); `beta_mapping=1` bounds
+//!   cantilever ([`calibration::calibration_scene`]); `beta_mapping=1` bounds
 //!   each link's bend by `Delta eps_y / r`, the largest elastic curvature of
 //!   the core (nothing fitted): it can follow a vessel but no longer sags
 //!   like the cantilever (see [`mapping`] for both and their trade-off);
@@ -71,6 +71,7 @@
 //! assert!(model.observe().rods[0].tip().z < 0.0);
 //! ```
 
+pub mod calibration;
 pub mod mapping;
 pub mod rules;
 pub mod volume;

@@ -1,6 +1,6 @@
 //! File formats: tetrahedral meshes (Gmsh MSH 4.x [`read_gmsh_v4`], Medit
 //! [`read_medit`]), triangle surfaces (STL binary and ASCII, OBJ:
-//! [`load_mesh`] into a [`TriSurface`]) and CSV datasets ([`truth_cube`]).
+//! [`load_mesh`] into a [`TriSurface`]) and CSV tables ([`table`], [`truth_cube`]).
 //!
 //! Every reader names the file, the place (line, byte, triangle) and what is
 //! wrong in its error. Coordinates are read as metres unless a scale is given.
@@ -17,6 +17,7 @@ pub mod medit;
 pub mod obj;
 pub mod stl;
 pub mod surface;
+pub mod table;
 pub mod tetfile;
 pub mod truth_cube;
 

@@ -2,6 +2,7 @@
 //! 7(3):283-291): bead positions of a silicone cube under uniaxial
 //! compression, as redistributed with OpenSurgSim (Apache-2.0).
 
+use super::table;
 use crate::Vec3;
 use std::path::Path;
 
@@ -40,61 +41,62 @@ pub fn load(path: impl AsRef<Path>) -> Result<TruthCube, String> {
 
 /// Parse the CSV text; `file` labels errors. See [`load`].
 pub fn parse(file: &str, text: &str) -> Result<TruthCube, String> {
-    let lines: Vec<&str> = text.lines().collect();
-    let header_at = lines
+    let rows = table::rows(text, false).map_err(|(line, e)| format!("{file}:{line}: {e}"))?;
+    let header_at = rows
         .iter()
-        .position(|l| l.split(',').next().map(str::trim) == Some("i"))
+        .position(|r| r.cells.get(0) == Some("i"))
         .ok_or_else(|| format!("{file}: no header row starting with column `i`"))?;
-    let header: Vec<&str> = lines[header_at].split(',').map(str::trim).collect();
+    let header = &rows[header_at];
     let mut col = [0usize; 15];
     for (c, name) in COLUMNS.iter().enumerate() {
-        col[c] = header
-            .iter()
-            .position(|h| h == name)
-            .ok_or_else(|| format!("{file}:{}: missing column `{name}`", header_at + 1))?;
+        col[c] = table::column(&header.cells, name)
+            .ok_or_else(|| format!("{file}:{}: missing column `{name}`", header.line))?;
     }
     let mut beads = Vec::new();
     let mut seen = std::collections::HashSet::new();
-    for (ln, line) in lines.iter().enumerate().skip(header_at + 1) {
-        if line.trim().trim_matches(',').is_empty() {
-            continue;
-        }
-        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
-        let get = |c: usize| -> Result<f64, String> {
-            let s = cells
-                .get(col[c])
-                .ok_or_else(|| format!("{file}:{}: row has no column `{}`", ln + 1, COLUMNS[c]))?;
-            s.parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite())
-                .ok_or_else(|| format!("{file}:{}: column `{}` is not a number: `{s}`", ln + 1, COLUMNS[c]))
-        };
-        let mut index = [0u8; 3];
-        for a in 0..3 {
-            let v = get(a)?;
-            if !(1.0..=7.0).contains(&v) || v.fract() != 0.0 {
-                return Err(format!(
-                    "{file}:{}: bead index `{}` = {v} is not in 1..=7",
-                    ln + 1,
-                    COLUMNS[a]
-                ));
-            }
-            index[a] = v as u8;
-        }
-        let mut positions = [Vec3::zeros(); 4];
-        for (s, p) in positions.iter_mut().enumerate() {
-            *p = Vec3::new(get(3 + 3 * s)?, get(4 + 3 * s)?, get(5 + 3 * s)?) * 1e-3;
-        }
+    for row in &rows[header_at + 1..] {
+        let bead = bead(file, row, &col)?;
         // The redistributed file repeats a few trailing rows; keep the
         // first occurrence of each bead.
-        if seen.insert(index) {
-            beads.push(Bead { index, positions });
+        if seen.insert(bead.index) {
+            beads.push(bead);
         }
     }
     if beads.is_empty() {
         return Err(format!("{file}: no bead rows after the header"));
     }
     Ok(TruthCube { beads })
+}
+
+/// One bead from a data row; `col` gives the cell of each of [`COLUMNS`].
+fn bead(file: &str, row: &table::Row, col: &[usize; 15]) -> Result<Bead, String> {
+    let ln = row.line;
+    let get = |c: usize| -> Result<f64, String> {
+        let s = row
+            .cells
+            .get(col[c])
+            .ok_or_else(|| format!("{file}:{ln}: row has no column `{}`", COLUMNS[c]))?;
+        s.parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("{file}:{ln}: column `{}` is not a number: `{s}`", COLUMNS[c]))
+    };
+    let mut index = [0u8; 3];
+    for a in 0..3 {
+        let v = get(a)?;
+        if !(1.0..=7.0).contains(&v) || v.fract() != 0.0 {
+            return Err(format!(
+                "{file}:{ln}: bead index `{}` = {v} is not in 1..=7",
+                COLUMNS[a]
+            ));
+        }
+        index[a] = v as u8;
+    }
+    let mut positions = [Vec3::zeros(); 4];
+    for (s, p) in positions.iter_mut().enumerate() {
+        *p = Vec3::new(get(3 + 3 * s)?, get(4 + 3 * s)?, get(5 + 3 * s)?) * 1e-3;
+    }
+    Ok(Bead { index, positions })
 }
 
 #[cfg(test)]
