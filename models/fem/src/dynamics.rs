@@ -183,6 +183,58 @@ pub struct FemModel {
     origin: Vec3,
 }
 
+/// The integrator's affine update rules of one step:
+/// `a(x) = c_a (x - x_n) + a0`, `v(x) = c_v (x - x_n) + v0`.
+struct Update {
+    /// `da/dx` (1/s^2).
+    c_a: f64,
+    /// `dv/dx` (1/s).
+    c_v: f64,
+    /// Acceleration at `x = x_n` (m/s^2).
+    a0: Vec<Vec3>,
+    /// Velocity at `x = x_n` (m/s).
+    v0: Vec<Vec3>,
+}
+
+/// The contact Hessian blocks of one Newton iteration, at their diagonal
+/// positions `at` in the block CSR matrix, scaled by `1 / c_k`.
+struct ContactBlocks {
+    at: Vec<usize>,
+    blocks: Vec<(usize, M3)>,
+    c_k: f64,
+}
+
+impl ContactBlocks {
+    /// `kmat` plus the contact blocks over `c_k`; `None` without contact.
+    fn apply(&self, kmat: &[M3]) -> Option<Vec<M3>> {
+        (!self.blocks.is_empty()).then(|| {
+            let mut k = kmat.to_vec();
+            for (&d, (_, b)) in self.at.iter().zip(&self.blocks) {
+                k[d] += b / self.c_k;
+            }
+            k
+        })
+    }
+}
+
+/// The linear solves of one dynamic step: CG iterations, the last relative
+/// residual, and whether every solve met its tolerance.
+struct LinearStats {
+    cg_its: usize,
+    res: f64,
+    all_met: bool,
+}
+
+impl Default for LinearStats {
+    fn default() -> Self {
+        Self {
+            cg_its: 0,
+            res: 0.0,
+            all_met: true,
+        }
+    }
+}
+
 impl FemModel {
     /// Build from a tissue body (rest mesh, material, fixed and driven
     /// nodes), gravity (m/s^2), time step (s) and settings.
@@ -443,28 +495,94 @@ impl FemModel {
         Ok(stats)
     }
 
-    fn dynamic_step(&mut self, dt: f64, s: f64, t_end: f64) -> Result<StepStats, SimError> {
+    /// The integrator's affine update rules of this step (see [`Update`]).
+    fn update_rules(&self, dt: f64) -> Update {
         let n = self.solid.n_nodes();
-        let (xn, vn, an) = (self.x.clone(), self.v.clone(), self.a.clone());
-        // a(x) = c_a (x - x_n) + a0, v(x) = c_v (x - x_n) + v0.
-        let (c_a, c_v, a0, v0): (f64, f64, Vec<Vec3>, Vec<Vec3>) = match self.p.integrator {
+        let (vn, an) = (&self.v, &self.a);
+        match self.p.integrator {
             Integrator::Newmark => {
                 let (b, g) = (0.25, 0.5);
                 let c_a = 1.0 / (b * dt * dt);
                 let a0: Vec<Vec3> = (0..n).map(|i| -vn[i] / (b * dt) - an[i] * (0.5 / b - 1.0)).collect();
                 let v0: Vec<Vec3> = (0..n).map(|i| vn[i] + (an[i] * (1.0 - g) + a0[i] * g) * dt).collect();
-                (c_a, g / (b * dt), a0, v0)
+                Update {
+                    c_a,
+                    c_v: g / (b * dt),
+                    a0,
+                    v0,
+                }
             }
-            _ => (
-                1.0 / (dt * dt),
-                1.0 / dt,
-                vn.iter().map(|v| -v / dt).collect(),
-                vec![Vec3::zeros(); n],
-            ),
-        };
+            _ => Update {
+                c_a: 1.0 / (dt * dt),
+                c_v: 1.0 / dt,
+                a0: vn.iter().map(|v| -v / dt).collect(),
+                v0: vec![Vec3::zeros(); n],
+            },
+        }
+    }
+
+    /// The Newton residual `g(x) = f_el + f_g + f_p - M (a + alpha v) - beta K v`
+    /// (N per DOF) at the current positions, without contact; `xn` are the
+    /// positions at the start of the step. Needs `self.solid` evaluated at `x`.
+    fn dynamic_residual(&self, u: &Update, xn: &[Vec3], s: f64) -> Vec<f64> {
+        let n = self.solid.n_nodes();
         let (alpha, beta) = (self.p.rayleigh_mass, self.p.rayleigh_stiffness);
-        let c_m = c_a + alpha * c_v;
-        let c_k = 1.0 + beta * c_v;
+        let dxs: Vec<Vec3> = (0..n).map(|i| self.x[i] - xn[i]).collect();
+        let vel: Vec<Vec3> = (0..n).map(|i| u.v0[i] + dxs[i] * u.c_v).collect();
+        let kv = if beta > 0.0 {
+            self.solid.k_times(&vel)
+        } else {
+            vec![Vec3::zeros(); n]
+        };
+        let m = &self.solid.mass;
+        let pf = Self::pressure_forces(&self.pressure, s, &self.x);
+        let mut r = vec![0.0; 3 * n];
+        for i in 0..n {
+            let acc = u.a0[i] + dxs[i] * u.c_a;
+            let ri = self.solid.forces[i] + self.gravity_load[i] - (acc + vel[i] * alpha) * m[i] - kv[i] * beta;
+            r[3 * i] = ri.x + pf[3 * i];
+            r[3 * i + 1] = ri.y + pf[3 * i + 1];
+            r[3 * i + 2] = ri.z + pf[3 * i + 2];
+        }
+        r
+    }
+
+    /// Initial guess of the first Newton iteration's iterative solves: the
+    /// constant-acceleration predictor `dx = dt v_n + dt^2/2 a_n` (Newmark)
+    /// or `dt v_n` (backward Euler), exact up to O(dt^3) for a smooth motion,
+    /// on the free DOFs. Later iterations solve for a correction and start
+    /// from zero.
+    fn predictor(&self, dt: f64) -> Vec<f64> {
+        let n = self.solid.n_nodes();
+        let mut guess = vec![0.0; 3 * n];
+        let h = if self.p.integrator == Integrator::Newmark {
+            0.5 * dt * dt
+        } else {
+            0.0
+        };
+        for i in 0..n {
+            let g = self.v[i] * dt + self.a[i] * h;
+            for k in 0..3 {
+                if self.sys.free[3 * i + k] {
+                    guess[3 * i + k] = g[k];
+                }
+            }
+        }
+        guess
+    }
+
+    /// One dynamic step: `p.iterations` Newton iterations on `g(x) = 0` (a
+    /// fixed count: with one it is the linearly implicit scheme, there is no
+    /// Newton tolerance), then the new velocities, accelerations and hand
+    /// force. `converged` says whether every linear solve of the step met
+    /// its tolerance (a direct solve always does; CG may stop at `max_iter`).
+    fn dynamic_step(&mut self, dt: f64, s: f64, t_end: f64) -> Result<StepStats, SimError> {
+        let n = self.solid.n_nodes();
+        let xn = self.x.clone();
+        let u = self.update_rules(dt);
+        let (alpha, beta) = (self.p.rayleigh_mass, self.p.rayleigh_stiffness);
+        let c_m = u.c_a + alpha * u.c_v;
+        let c_k = 1.0 + beta * u.c_v;
         self.set_constrained(s);
         if let Some((ind, c)) = &mut self.contact {
             c.centre = ind.centre_at(s);
@@ -475,30 +593,13 @@ impl FemModel {
         };
         let mut last_r = vec![0.0; 3 * n];
         let mut last_dx = vec![0.0; 3 * n];
-        let mut res = 0.0;
-        let mut cg_its = 0;
+        let mut lin = LinearStats::default();
         let mut updated = 0;
         for newton_it in 0..self.p.iterations {
             let st = self.solid.evaluate(&self.x, Some(jac), self.p.lazy_threshold);
             updated += st.updated;
             self.inverted = st.inverted;
-            let dxs: Vec<Vec3> = (0..n).map(|i| self.x[i] - xn[i]).collect();
-            let vel: Vec<Vec3> = (0..n).map(|i| v0[i] + dxs[i] * c_v).collect();
-            let kv = if beta > 0.0 {
-                self.solid.k_times(&vel)
-            } else {
-                vec![Vec3::zeros(); n]
-            };
-            let m = &self.solid.mass;
-            let pf = Self::pressure_forces(&self.pressure, s, &self.x);
-            let mut r = vec![0.0; 3 * n];
-            for i in 0..n {
-                let acc = a0[i] + dxs[i] * c_a;
-                let ri = self.solid.forces[i] + self.gravity_load[i] - (acc + vel[i] * alpha) * m[i] - kv[i] * beta;
-                r[3 * i] = ri.x + pf[3 * i];
-                r[3 * i + 1] = ri.y + pf[3 * i + 1];
-                r[3 * i + 2] = ri.z + pf[3 * i + 2];
-            }
+            let mut r = self.dynamic_residual(&u, &xn, s);
             // The sphere contact: its forces join the residual (the
             // elastic part `r_el` gives the driven nodes' reaction), its
             // Hessian blocks join the matrix, divided by `c_k` so that the
@@ -517,121 +618,17 @@ impl FemModel {
                 }
                 None => Vec::new(),
             };
-            let at: Vec<usize> = blocks.iter().map(|(i, _)| self.solid.pat.diag[*i]).collect();
-            let with_contact = |kmat: &[M3]| -> Option<Vec<M3>> {
-                (!blocks.is_empty()).then(|| {
-                    let mut k = kmat.to_vec();
-                    for (&d, (_, b)) in at.iter().zip(&blocks) {
-                        k[d] += b / c_k;
-                    }
-                    k
-                })
+            let hc = ContactBlocks {
+                at: blocks.iter().map(|(i, _)| self.solid.pat.diag[*i]).collect(),
+                blocks,
+                c_k,
             };
-            let kc = with_contact(&self.solid.kmat);
-            // Initial guess for the iterative solves: on the first Newton
-            // iteration the constant-acceleration predictor
-            // `dx = dt v_n + dt^2/2 a_n` (Newmark) or `dt v_n` (backward
-            // Euler), exact up to O(dt^3) for a smooth motion; later
-            // iterations solve for a correction and start from zero.
-            let mut guess = vec![0.0; 3 * n];
-            if newton_it == 0 {
-                let h = if self.p.integrator == Integrator::Newmark {
-                    0.5 * dt * dt
-                } else {
-                    0.0
-                };
-                for i in 0..n {
-                    let g = vn[i] * dt + an[i] * h;
-                    for k in 0..3 {
-                        if self.sys.free[3 * i + k] {
-                            guess[3 * i + k] = g[k];
-                        }
-                    }
-                }
-            }
-            let mut dx = r.clone();
-            match self.p.solver {
-                LinearSolver::Cholesky(ord) => {
-                    let same = self.cached == Some((c_k, c_m)) && self.sys.has_factorization();
-                    let mut solved = false;
-                    self.factor_stale |= st.updated > 0 || kc.is_some() || self.factor_has_contact;
-                    if same && !self.factor_stale {
-                        // No block changed since the factorization: reuse it as is.
-                        self.sys.solve_cholesky(&mut dx);
-                        solved = true;
-                    } else if same && self.p.factor_reuse {
-                        let reuse_tol = self.p.reuse_tol;
-                        // Some blocks changed: the stale factor preconditions
-                        // CG on the current matrix (REUSE_TOL, REUSE_ITERS).
-                        let mut sol = guess.clone();
-                        let (sys, solid) = (&mut self.sys, &self.solid);
-                        let kmat = kc.as_deref().unwrap_or(&solid.kmat);
-                        let out = solid.install(|| {
-                            sys.solve_factor_pcg(
-                                &solid.pat,
-                                kmat,
-                                c_k,
-                                &solid.mass,
-                                c_m,
-                                &r,
-                                &mut sol,
-                                reuse_tol,
-                                REUSE_ITERS,
-                            )
-                        });
-                        if let Some((it, rel)) = out {
-                            cg_its += it;
-                            res = rel;
-                            if rel <= reuse_tol {
-                                dx = sol;
-                                solved = true;
-                            }
-                            // The factor has aged: refresh it on the next step.
-                            self.excess_solves += it.saturating_sub(1);
-                            if self.excess_solves > REFRESH_EXCESS {
-                                self.cached = None;
-                            }
-                        }
-                    }
-                    if !solved {
-                        let kmat = kc.as_deref().unwrap_or(&self.solid.kmat);
-                        self.sys.set_values(&self.solid.pat, kmat, c_k, &self.solid.mass, c_m);
-                        self.factor_has_contact = kc.is_some();
-                        self.cached = Some((c_k, c_m));
-                        self.factor_stale = false;
-                        self.excess_solves = 0;
-                        if let Err(e) = self.sys.factorize(&self.solid.pat, ord) {
-                            // Indefinite exact Hessian (neo-Hookean): retry projected.
-                            self.solid.evaluate(&self.x, Some(Jacobian::Projected), 0.0);
-                            let kp = with_contact(&self.solid.kmat);
-                            let kmat = kp.as_deref().unwrap_or(&self.solid.kmat);
-                            self.sys.set_values(&self.solid.pat, kmat, c_k, &self.solid.mass, c_m);
-                            self.cached = None;
-                            self.sys
-                                .factorize(&self.solid.pat, ord)
-                                .map_err(|_| SimError::SolverFailed {
-                                    t: t_end,
-                                    reason: e.clone(),
-                                })?;
-                        }
-                        self.sys.solve_cholesky(&mut dx);
-                        res = 0.0;
-                    }
-                }
-                LinearSolver::Cg { tol, max_iter } => {
-                    // Only the block-Jacobi preconditioner is needed (no CSC values).
-                    let mut sol = guess;
-                    let (sys, solid) = (&mut self.sys, &self.solid);
-                    let kmat = kc.as_deref().unwrap_or(&solid.kmat);
-                    let (it, rel) = solid.install(|| {
-                        sys.set_block_jacobi(&solid.pat, kmat, c_k, &solid.mass, c_m);
-                        sys.solve_cg(&solid.pat, kmat, c_k, &solid.mass, c_m, &r, &mut sol, tol, max_iter)
-                    });
-                    cg_its += it;
-                    res = rel;
-                    dx = sol;
-                }
-            }
+            let guess = if newton_it == 0 {
+                self.predictor(dt)
+            } else {
+                vec![0.0; 3 * n]
+            };
+            let dx = self.linear_solve(&r, guess, &hc, (c_k, c_m), st.updated, &mut lin, t_end)?;
             for i in 0..n {
                 self.x[i] += Vec3::new(dx[3 * i], dx[3 * i + 1], dx[3 * i + 2]);
             }
@@ -639,14 +636,159 @@ impl FemModel {
             last_dx = dx;
         }
         self.last_updated = updated;
+        self.finish_dynamic_step(&u, &xn, &last_r, &last_dx, c_k);
+        Ok(StepStats {
+            iterations: if lin.cg_its > 0 {
+                lin.cg_its as u32
+            } else {
+                self.p.iterations as u32
+            },
+            residual: lin.res,
+            converged: lin.all_met,
+        })
+    }
+
+    /// Solve the Newton system `(c_k K + H_c + c_m M) dx = r` (`coef` =
+    /// `(c_k, c_m)`) by the configured solver (module docs), starting the
+    /// iterative solves from `guess`; `updated` Jacobian blocks changed in
+    /// this evaluation. Records CG iterations, the last relative residual
+    /// and whether the solve met its tolerance in `lin`.
+    fn linear_solve(
+        &mut self,
+        r: &[f64],
+        guess: Vec<f64>,
+        hc: &ContactBlocks,
+        coef: (f64, f64),
+        updated: usize,
+        lin: &mut LinearStats,
+        t_end: f64,
+    ) -> Result<Vec<f64>, SimError> {
+        let (c_k, c_m) = coef;
+        let kc = hc.apply(&self.solid.kmat);
+        match self.p.solver {
+            LinearSolver::Cholesky(ord) => {
+                let mut dx = r.to_vec();
+                let same = self.cached == Some((c_k, c_m)) && self.sys.has_factorization();
+                self.factor_stale |= updated > 0 || kc.is_some() || self.factor_has_contact;
+                if same && !self.factor_stale {
+                    // No block changed since the factorization: reuse it as is.
+                    self.sys.solve_cholesky(&mut dx);
+                    return Ok(dx);
+                }
+                if same
+                    && self.p.factor_reuse
+                    && let Some(sol) = self.stale_factor_pcg(r, guess, kc.as_deref(), coef, lin)
+                {
+                    return Ok(sol);
+                }
+                self.refactorize(hc, kc.as_deref(), coef, ord, t_end)?;
+                self.sys.solve_cholesky(&mut dx);
+                lin.res = 0.0;
+                Ok(dx)
+            }
+            LinearSolver::Cg { tol, max_iter } => {
+                // Only the block-Jacobi preconditioner is needed (no CSC values).
+                let mut sol = guess;
+                let (sys, solid) = (&mut self.sys, &self.solid);
+                let kmat = kc.as_deref().unwrap_or(&solid.kmat);
+                let (it, rel) = solid.install(|| {
+                    sys.set_block_jacobi(&solid.pat, kmat, c_k, &solid.mass, c_m);
+                    sys.solve_cg(&solid.pat, kmat, c_k, &solid.mass, c_m, r, &mut sol, tol, max_iter)
+                });
+                lin.cg_its += it;
+                lin.res = rel;
+                lin.all_met &= rel <= tol;
+                Ok(sol)
+            }
+        }
+    }
+
+    /// Some blocks changed since the factorization: the stale factor
+    /// preconditions CG on the current matrix (`kc`, or the elastic one) to
+    /// `reuse_tol` in at most [`REUSE_ITERS`] iterations. The solution if it
+    /// got there, else `None` (the caller refactorizes).
+    fn stale_factor_pcg(
+        &mut self,
+        r: &[f64],
+        guess: Vec<f64>,
+        kc: Option<&[M3]>,
+        (c_k, c_m): (f64, f64),
+        lin: &mut LinearStats,
+    ) -> Option<Vec<f64>> {
+        let reuse_tol = self.p.reuse_tol;
+        let mut sol = guess;
+        let (sys, solid) = (&mut self.sys, &self.solid);
+        let kmat = kc.unwrap_or(&solid.kmat);
+        let out = solid.install(|| {
+            sys.solve_factor_pcg(
+                &solid.pat,
+                kmat,
+                c_k,
+                &solid.mass,
+                c_m,
+                r,
+                &mut sol,
+                reuse_tol,
+                REUSE_ITERS,
+            )
+        });
+        let (it, rel) = out?;
+        lin.cg_its += it;
+        lin.res = rel;
+        // The factor has aged: refresh it on the next step.
+        self.excess_solves += it.saturating_sub(1);
+        if self.excess_solves > REFRESH_EXCESS {
+            self.cached = None;
+        }
+        (rel <= reuse_tol).then_some(sol)
+    }
+
+    /// Set the matrix `c_k K + H_c + c_m M` (`kc` with contact, else the
+    /// elastic `K`) and factorize it; an indefinite exact Hessian
+    /// (neo-Hookean) is re-evaluated projected and factorized again.
+    fn refactorize(
+        &mut self,
+        hc: &ContactBlocks,
+        kc: Option<&[M3]>,
+        (c_k, c_m): (f64, f64),
+        ord: Ordering,
+        t_end: f64,
+    ) -> Result<(), SimError> {
+        let kmat = kc.unwrap_or(&self.solid.kmat);
+        self.sys.set_values(&self.solid.pat, kmat, c_k, &self.solid.mass, c_m);
+        self.factor_has_contact = kc.is_some();
+        self.cached = Some((c_k, c_m));
+        self.factor_stale = false;
+        self.excess_solves = 0;
+        if let Err(e) = self.sys.factorize(&self.solid.pat, ord) {
+            // Indefinite exact Hessian (neo-Hookean): retry projected.
+            self.solid.evaluate(&self.x, Some(Jacobian::Projected), 0.0);
+            let kp = hc.apply(&self.solid.kmat);
+            let kmat = kp.as_deref().unwrap_or(&self.solid.kmat);
+            self.sys.set_values(&self.solid.pat, kmat, c_k, &self.solid.mass, c_m);
+            self.cached = None;
+            self.sys
+                .factorize(&self.solid.pat, ord)
+                .map_err(|_| SimError::SolverFailed {
+                    t: t_end,
+                    reason: e.clone(),
+                })?;
+        }
+        Ok(())
+    }
+
+    /// End of a dynamic step: accelerations and velocities from the update
+    /// rules, and the hand force. The reaction on the driven nodes is
+    /// linearized to the end of the step, `r(x + dx) ~ r - c_k K dx` (the
+    /// mass term vanishes on constrained DOFs), plus the force on the sphere
+    /// at the end of the step.
+    fn finish_dynamic_step(&mut self, u: &Update, xn: &[Vec3], last_r: &[f64], last_dx: &[f64], c_k: f64) {
+        let n = self.solid.n_nodes();
         for i in 0..n {
             let d = self.x[i] - xn[i];
-            self.a[i] = a0[i] + d * c_a;
-            self.v[i] = v0[i] + d * c_v;
+            self.a[i] = u.a0[i] + d * u.c_a;
+            self.v[i] = u.v0[i] + d * u.c_v;
         }
-        // Reaction on the driven nodes, linearized to the end of the step:
-        // r(x + dx) ~ r - c_k K dx (the mass term vanishes on constrained
-        // DOFs), plus the force on the sphere at the end of the step.
         let dxv: Vec<Vec3> = (0..n)
             .map(|i| Vec3::new(last_dx[3 * i], last_dx[3 * i + 1], last_dx[3 * i + 2]))
             .collect();
@@ -660,15 +802,6 @@ impl FemModel {
                 .contact
                 .as_ref()
                 .map_or(Vec3::zeros(), |(_, c)| c.reaction(&self.x));
-        Ok(StepStats {
-            iterations: if cg_its > 0 {
-                cg_its as u32
-            } else {
-                self.p.iterations as u32
-            },
-            residual: res,
-            converged: true,
-        })
     }
 
     fn energies(&self) -> EnergyObs {
