@@ -72,42 +72,14 @@ impl FemFactory {
         full.check_extras(KEYS).map_err(|e| BuildError::bad("fidelity", e.0))?;
         // `mesh_level` is the scenario's knob: it builds the scene's mesh at
         // that level (`Scenario::instantiate_at`); fem runs on that mesh.
-        let code = |name: &str, max: f64| -> Result<f64, BuildError> {
-            let v = full.extra(name, 0.0);
-            if v < 0.0 || v > max || v.fract() != 0.0 {
-                Err(BuildError::bad(
-                    name,
-                    format!("must be an integer in 0..={max}, got {v}"),
-                ))
-            } else {
-                Ok(v)
-            }
-        };
+        let code = |name: &str, max: f64| int_code(&full, name, max);
         let law = Law::from_code(code("material_law", 2.0)?).expect("range checked");
         let integrator = match code("integrator", 2.0)? as usize {
             0 => Integrator::Newmark,
             1 => Integrator::BackwardEuler,
             _ => Integrator::QuasiStatic,
         };
-        let ordering = match full.extra("ordering", 3.0) {
-            0.0 => Ordering::Amd,
-            1.0 => Ordering::Rcm,
-            2.0 => Ordering::NestedDissection,
-            3.0 => Ordering::Auto,
-            v => return Err(BuildError::bad("ordering", format!("must be 0, 1, 2 or 3, got {v}"))),
-        };
-        let cg_tol = full.extra("cg_tol", 1e-8);
-        if !(cg_tol > 0.0 && cg_tol < 1.0) {
-            return Err(BuildError::bad("cg_tol", format!("must be in (0, 1), got {cg_tol}")));
-        }
-        let solver = if code("solver", 1.0)? == 1.0 {
-            LinearSolver::Cg {
-                tol: cg_tol,
-                max_iter: 2000,
-            }
-        } else {
-            LinearSolver::Cholesky(ordering)
-        };
+        let solver = linear_solver(&full)?;
         let nonneg = |name: &str| -> Result<f64, BuildError> {
             let v = full.extra(name, 0.0);
             if v >= 0.0 {
@@ -116,16 +88,8 @@ impl FemFactory {
                 Err(BuildError::bad(name, format!("must be >= 0, got {v}")))
             }
         };
-        let factor_reuse = match full.extra("factor_reuse", 1.0) {
-            0.0 => false,
-            1.0 => true,
-            v => return Err(BuildError::bad("factor_reuse", format!("must be 0 or 1, got {v}"))),
-        };
-        let reuse_f32 = match full.extra("reuse_f32", 1.0) {
-            0.0 => false,
-            1.0 => true,
-            v => return Err(BuildError::bad("reuse_f32", format!("must be 0 or 1, got {v}"))),
-        };
+        let factor_reuse = switch(&full, "factor_reuse")?;
+        let reuse_f32 = switch(&full, "reuse_f32")?;
         let reuse_tol = full.extra("reuse_tol", REUSE_TOL);
         if !(reuse_tol > 0.0 && reuse_tol < 1.0) {
             return Err(BuildError::bad(
@@ -219,4 +183,49 @@ impl ModelFactory for FemFactory {
             FemModel::new(tissues[0], scene.gravity, dt, p).map_err(|e| BuildError::bad("tissue", e.to_string()))?;
         Ok(Box::new(m))
     }
+}
+
+/// The fidelity extra `name` (default 0) as an integer code in `0..=max`.
+fn int_code(full: &Fidelity, name: &str, max: f64) -> Result<f64, BuildError> {
+    let v = full.extra(name, 0.0);
+    if v < 0.0 || v > max || v.fract() != 0.0 {
+        Err(BuildError::bad(
+            name,
+            format!("must be an integer in 0..={max}, got {v}"),
+        ))
+    } else {
+        Ok(v)
+    }
+}
+
+/// The fidelity extra `name` (default 1 = on) as an on/off switch.
+fn switch(full: &Fidelity, name: &str) -> Result<bool, BuildError> {
+    match full.extra(name, 1.0) {
+        0.0 => Ok(false),
+        1.0 => Ok(true),
+        v => Err(BuildError::bad(name, format!("must be 0 or 1, got {v}"))),
+    }
+}
+
+/// The linear solver of the extras `solver`, `ordering` and `cg_tol`.
+fn linear_solver(full: &Fidelity) -> Result<LinearSolver, BuildError> {
+    let ordering = match full.extra("ordering", 3.0) {
+        0.0 => Ordering::Amd,
+        1.0 => Ordering::Rcm,
+        2.0 => Ordering::NestedDissection,
+        3.0 => Ordering::Auto,
+        v => return Err(BuildError::bad("ordering", format!("must be 0, 1, 2 or 3, got {v}"))),
+    };
+    let cg_tol = full.extra("cg_tol", 1e-8);
+    if !(cg_tol > 0.0 && cg_tol < 1.0) {
+        return Err(BuildError::bad("cg_tol", format!("must be in (0, 1), got {cg_tol}")));
+    }
+    Ok(if int_code(full, "solver", 1.0)? == 1.0 {
+        LinearSolver::Cg {
+            tol: cg_tol,
+            max_iter: 2000,
+        }
+    } else {
+        LinearSolver::Cholesky(ordering)
+    })
 }

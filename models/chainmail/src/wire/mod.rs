@@ -97,6 +97,40 @@ pub struct WireConfig {
     pub haptic_k: Option<f64>,
 }
 
+impl WireConfig {
+    /// The settings are in range (the messages name the knob).
+    pub fn validate(&self) -> Result<(), String> {
+        if self.segments == 0 {
+            return Err("segments must be >= 1".into());
+        }
+        if self.iterations == 0 {
+            return Err("iterations must be >= 1".into());
+        }
+        if !(self.dt > 0.0 && self.dt.is_finite()) {
+            return Err(format!("dt must be > 0 s, got {}", self.dt));
+        }
+        if !(self.beta_constant >= 0.0 && self.beta_constant.is_finite()) {
+            return Err(format!("beta constant must be >= 0, got {}", self.beta_constant));
+        }
+        if let BetaMapping::Navigation { yield_strain } = self.beta_mapping
+            && !(yield_strain > 0.0 && yield_strain < 1.0)
+        {
+            return Err(format!("yield_strain must be in (0, 1), got {yield_strain}"));
+        }
+        if let Some(b) = self.beta_override
+            && !(b >= 0.0 && b.is_finite())
+        {
+            return Err(format!("beta must be >= 0, got {b}"));
+        }
+        if let Some(k) = self.haptic_k
+            && !(k >= 0.0 && k.is_finite())
+        {
+            return Err(format!("haptic_k must be >= 0 N/m, got {k}"));
+        }
+        Ok(())
+    }
+}
+
 /// The simulated wire (one rod of a scene).
 #[derive(Debug, Clone)]
 pub struct ChainmailWire {
@@ -171,33 +205,7 @@ impl ChainmailWire {
         cfg: &WireConfig,
     ) -> Result<Self, String> {
         rod.validate()?;
-        if cfg.segments == 0 {
-            return Err("segments must be >= 1".into());
-        }
-        if cfg.iterations == 0 {
-            return Err("iterations must be >= 1".into());
-        }
-        if !(cfg.dt > 0.0 && cfg.dt.is_finite()) {
-            return Err(format!("dt must be > 0 s, got {}", cfg.dt));
-        }
-        if !(cfg.beta_constant >= 0.0 && cfg.beta_constant.is_finite()) {
-            return Err(format!("beta constant must be >= 0, got {}", cfg.beta_constant));
-        }
-        if let BetaMapping::Navigation { yield_strain } = cfg.beta_mapping
-            && !(yield_strain > 0.0 && yield_strain < 1.0)
-        {
-            return Err(format!("yield_strain must be in (0, 1), got {yield_strain}"));
-        }
-        if let Some(b) = cfg.beta_override
-            && !(b >= 0.0 && b.is_finite())
-        {
-            return Err(format!("beta must be >= 0, got {b}"));
-        }
-        if let Some(k) = cfg.haptic_k
-            && !(k >= 0.0 && k.is_finite())
-        {
-            return Err(format!("haptic_k must be >= 0 N/m, got {k}"));
-        }
+        cfg.validate()?;
         let c = &env.contact;
         if !(0.0..=1.0).contains(&c.friction_static) {
             return Err(format!(
@@ -437,6 +445,25 @@ impl ChainmailWire {
         if dir > 0 { i } else { i - 1 }
     }
 
+    /// Move the free elements by gravity over the step (`g dt^2`) and,
+    /// with flow, by the blood's displacement `v dt` (carried by the
+    /// vessel's lattice when it moves).
+    fn drift(&mut self, dt: f64) {
+        let gd = self.gravity * (dt * dt);
+        for i in self.n_fixed..self.x.len() {
+            let mut d = gd;
+            if let Some(fl) = &self.flow {
+                d += match &self.lattice {
+                    // blood carried by the vessel: the rest flow at the
+                    // element's rest point plus the lattice's motion
+                    Some(lat) => fl.velocity(&lat.rest_point(&self.x[i])) * dt + lat.step_motion(&self.x[i]),
+                    None => fl.velocity(&self.x[i]) * dt,
+                };
+            }
+            self.x[i] += d;
+        }
+    }
+
     /// Advance one step of `dt` seconds with the operator's command.
     pub fn advance(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
         if !(dt > 0.0 && dt.is_finite() && cmd.insertion.is_finite() && cmd.rotation.is_finite()) {
@@ -467,19 +494,7 @@ impl ChainmailWire {
             self.lattice = Some(lat);
         }
 
-        let gd = self.gravity * (dt * dt);
-        for i in self.n_fixed..self.x.len() {
-            let mut d = gd;
-            if let Some(fl) = &self.flow {
-                d += match &self.lattice {
-                    // blood carried by the vessel: the rest flow at the
-                    // element's rest point plus the lattice's motion
-                    Some(lat) => fl.velocity(&lat.rest_point(&self.x[i])) * dt + lat.step_motion(&self.x[i]),
-                    None => fl.velocity(&self.x[i]) * dt,
-                };
-            }
-            self.x[i] += d;
-        }
+        self.drift(dt);
         // in the link frame the rotation reaches the wire through `d1b`: the
         // frames carry it rigidly to every link (and turn a curved tip)
         if d_rot != 0.0 && self.frame != BoxFrame::Link {

@@ -20,106 +20,17 @@ pub fn parse_gmsh_v4(file: &str, text: &str) -> Result<TetMesh, MeshError> {
     let mut tk = Tokens::new(file, text, None);
     let mut tags: HashMap<usize, usize> = HashMap::new();
     let mut nodes: Vec<Vec3> = Vec::new();
-    let mut tets: Vec<([usize; 4], usize)> = Vec::new();
     let mut raw_tets: Vec<([usize; 4], usize)> = Vec::new();
     let mut seen_format = false;
     while let Some((ln, t)) = tk.peek() {
         tk.pos += 1;
         match t {
             "$MeshFormat" => {
-                let (vln, v) = tk.next("format version")?;
-                let ver: f64 = v
-                    .parse()
-                    .map_err(|_| tk.err(vln, format!("bad format version `{v}`")))?;
-                if !(4.0..5.0).contains(&ver) {
-                    return Err(tk.err(vln, format!("MSH version {v} is not supported (need 4.x)")));
-                }
-                let ft = tk.usize("file type")?;
-                if ft != 0 {
-                    return Err(tk.err(vln, "binary MSH files are not supported (file type 1); save as ASCII"));
-                }
-                tk.usize("data size")?;
-                tk.expect("$EndMeshFormat")?;
+                read_format(&mut tk)?;
                 seen_format = true;
             }
-            "$Nodes" => {
-                let blocks = tk.usize("numEntityBlocks")?;
-                let total = tk.usize("numNodes")?;
-                tk.usize("minNodeTag")?;
-                tk.usize("maxNodeTag")?;
-                nodes.reserve(total);
-                for _ in 0..blocks {
-                    let dim = tk.usize("entityDim")?;
-                    tk.next("entityTag")?;
-                    let parametric = tk.usize("parametric flag")?;
-                    let n = tk.usize("numNodesInBlock")?;
-                    let mut block_tags = Vec::with_capacity(n);
-                    for _ in 0..n {
-                        let (tl, _) = tk.peek().unwrap_or((ln, ""));
-                        let tag = tk.usize("node tag")?;
-                        if tags.contains_key(&tag) {
-                            return Err(tk.err(tl, format!("duplicate node tag {tag}")));
-                        }
-                        block_tags.push(tag);
-                    }
-                    for tag in block_tags {
-                        let p = Vec3::new(tk.f64("x")?, tk.f64("y")?, tk.f64("z")?);
-                        if parametric == 1 {
-                            for _ in 0..dim.min(3) {
-                                tk.f64("parametric coordinate")?;
-                            }
-                        }
-                        tags.insert(tag, nodes.len());
-                        nodes.push(p);
-                    }
-                }
-                if nodes.len() != total {
-                    return Err(tk.err(
-                        ln,
-                        format!("$Nodes declares {total} nodes but its blocks hold {}", nodes.len()),
-                    ));
-                }
-                tk.expect("$EndNodes")?;
-            }
-            "$Elements" => {
-                let blocks = tk.usize("numEntityBlocks")?;
-                tk.usize("numElements")?;
-                tk.usize("minElementTag")?;
-                tk.usize("maxElementTag")?;
-                for _ in 0..blocks {
-                    tk.usize("entityDim")?;
-                    tk.next("entityTag")?;
-                    let (tl, _) = tk.peek().unwrap_or((ln, ""));
-                    let ty = tk.usize("elementType")?;
-                    let n = tk.usize("numElementsInBlock")?;
-                    let nn = match ty {
-                        15 => 1,
-                        1 => 2,
-                        2 => 3,
-                        3 => 4,
-                        4 => 4,
-                        5 => 8,
-                        6 => 6,
-                        7 => 5,
-                        8 => 3,
-                        9 => 6,
-                        11 => 10,
-                        _ => return Err(tk.err(tl, format!("element type {ty} is not supported"))),
-                    };
-                    for _ in 0..n {
-                        let (el, _) = tk.peek().unwrap_or((ln, ""));
-                        tk.usize("element tag")?;
-                        let mut v = [0usize; 10];
-                        for slot in v.iter_mut().take(nn) {
-                            *slot = tk.usize("element node tag")?;
-                        }
-                        if ty == 4 {
-                            raw_tets.push(([v[0], v[1], v[2], v[3]], el));
-                        }
-                    }
-                }
-                tk.expect("$EndElements")?;
-            }
+            "$Nodes" => read_nodes(&mut tk, ln, &mut tags, &mut nodes)?,
+            "$Elements" => read_elements(&mut tk, ln, &mut raw_tets)?,
             s if s.starts_with('$') && !s.starts_with("$End") => {
                 // Skip an unknown section up to its end marker.
                 let end = format!("$End{}", &s[1..]);
@@ -136,6 +47,7 @@ pub fn parse_gmsh_v4(file: &str, text: &str) -> Result<TetMesh, MeshError> {
     if !seen_format {
         return Err(tk.err(1, "missing $MeshFormat section (is this a Gmsh file?)"));
     }
+    let mut tets: Vec<([usize; 4], usize)> = Vec::new();
     for (t, el) in raw_tets {
         let mut idx = [0usize; 4];
         for (k, tag) in t.iter().enumerate() {
@@ -146,6 +58,121 @@ pub fn parse_gmsh_v4(file: &str, text: &str) -> Result<TetMesh, MeshError> {
         tets.push((idx, el));
     }
     finish_mesh(file, nodes, tets)
+}
+
+/// The body of `$MeshFormat`: version 4.x, ASCII.
+fn read_format(tk: &mut Tokens) -> Result<(), MeshError> {
+    let (vln, v) = tk.next("format version")?;
+    let ver: f64 = v
+        .parse()
+        .map_err(|_| tk.err(vln, format!("bad format version `{v}`")))?;
+    if !(4.0..5.0).contains(&ver) {
+        return Err(tk.err(vln, format!("MSH version {v} is not supported (need 4.x)")));
+    }
+    let ft = tk.usize("file type")?;
+    if ft != 0 {
+        return Err(tk.err(vln, "binary MSH files are not supported (file type 1); save as ASCII"));
+    }
+    tk.usize("data size")?;
+    tk.expect("$EndMeshFormat")?;
+    Ok(())
+}
+
+/// The body of `$Nodes` (section header on line `ln`): node positions, and
+/// each node's tag mapped to its index in `nodes`.
+fn read_nodes(
+    tk: &mut Tokens,
+    ln: usize,
+    tags: &mut HashMap<usize, usize>,
+    nodes: &mut Vec<Vec3>,
+) -> Result<(), MeshError> {
+    let blocks = tk.usize("numEntityBlocks")?;
+    let total = tk.usize("numNodes")?;
+    tk.usize("minNodeTag")?;
+    tk.usize("maxNodeTag")?;
+    nodes.reserve(total);
+    for _ in 0..blocks {
+        let dim = tk.usize("entityDim")?;
+        tk.next("entityTag")?;
+        let parametric = tk.usize("parametric flag")?;
+        let n = tk.usize("numNodesInBlock")?;
+        let mut block_tags = Vec::with_capacity(n);
+        for _ in 0..n {
+            let (tl, _) = tk.peek().unwrap_or((ln, ""));
+            let tag = tk.usize("node tag")?;
+            if tags.contains_key(&tag) {
+                return Err(tk.err(tl, format!("duplicate node tag {tag}")));
+            }
+            block_tags.push(tag);
+        }
+        for tag in block_tags {
+            let p = Vec3::new(tk.f64("x")?, tk.f64("y")?, tk.f64("z")?);
+            if parametric == 1 {
+                for _ in 0..dim.min(3) {
+                    tk.f64("parametric coordinate")?;
+                }
+            }
+            tags.insert(tag, nodes.len());
+            nodes.push(p);
+        }
+    }
+    if nodes.len() != total {
+        return Err(tk.err(
+            ln,
+            format!("$Nodes declares {total} nodes but its blocks hold {}", nodes.len()),
+        ));
+    }
+    tk.expect("$EndNodes")?;
+    Ok(())
+}
+
+/// Nodes per element of the Gmsh element types this reader can skip over
+/// (or keep: type 4, the 4-node tetrahedron).
+fn element_nodes(ty: usize) -> Option<usize> {
+    Some(match ty {
+        15 => 1,
+        1 => 2,
+        2 => 3,
+        3 => 4,
+        4 => 4,
+        5 => 8,
+        6 => 6,
+        7 => 5,
+        8 => 3,
+        9 => 6,
+        11 => 10,
+        _ => return None,
+    })
+}
+
+/// The body of `$Elements` (section header on line `ln`): the 4-node
+/// tetrahedra as node tags, each with its line.
+fn read_elements(tk: &mut Tokens, ln: usize, raw_tets: &mut Vec<([usize; 4], usize)>) -> Result<(), MeshError> {
+    let blocks = tk.usize("numEntityBlocks")?;
+    tk.usize("numElements")?;
+    tk.usize("minElementTag")?;
+    tk.usize("maxElementTag")?;
+    for _ in 0..blocks {
+        tk.usize("entityDim")?;
+        tk.next("entityTag")?;
+        let (tl, _) = tk.peek().unwrap_or((ln, ""));
+        let ty = tk.usize("elementType")?;
+        let n = tk.usize("numElementsInBlock")?;
+        let nn = element_nodes(ty).ok_or_else(|| tk.err(tl, format!("element type {ty} is not supported")))?;
+        for _ in 0..n {
+            let (el, _) = tk.peek().unwrap_or((ln, ""));
+            tk.usize("element tag")?;
+            let mut v = [0usize; 10];
+            for slot in v.iter_mut().take(nn) {
+                *slot = tk.usize("element node tag")?;
+            }
+            if ty == 4 {
+                raw_tets.push(([v[0], v[1], v[2], v[3]], el));
+            }
+        }
+    }
+    tk.expect("$EndElements")?;
+    Ok(())
 }
 
 #[cfg(test)]

@@ -252,6 +252,24 @@ impl DerRod {
         self.time = s.time;
     }
 
+    /// Scale `beta` of the constant-velocity warm start `q0 + beta dt v`:
+    /// 1 without a vessel, else the largest value that moves no node farther
+    /// than its [`Self::move_allowance`].
+    fn prediction_scale(&self, dt: f64) -> f64 {
+        if self.vessel.is_some() {
+            let mut beta: f64 = 1.0;
+            for k in 2..self.n {
+                let v = self.node_velocity(k).norm() * dt;
+                if v > 0.0 {
+                    beta = beta.min(self.move_allowance(k) / v);
+                }
+            }
+            beta
+        } else {
+            1.0
+        }
+    }
+
     /// One implicit step without retries.
     pub(super) fn single_step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
         let newmark = self.params.integrator == Integrator::Newmark;
@@ -298,18 +316,7 @@ impl DerRod {
         // In contact scenes the prediction is scaled down so that no node
         // moves farther than the step control of `newton` allows (a fast
         // node would otherwise start deep in, or through, the wall).
-        let beta = if self.vessel.is_some() {
-            let mut beta: f64 = 1.0;
-            for k in 2..self.n {
-                let v = self.node_velocity(k).norm() * dt;
-                if v > 0.0 {
-                    beta = beta.min(self.move_allowance(k) / v);
-                }
-            }
-            beta
-        } else {
-            1.0
-        };
+        let beta = self.prediction_scale(dt);
         for g in CLAMPED_DOFS..ndof {
             self.q[g] += beta * dt * self.qdot[g];
         }

@@ -42,7 +42,7 @@ use crate::contact::SphereContact;
 use crate::core::Solid;
 use crate::element::Jacobian;
 use crate::material::{Law, M3};
-use crate::statics::{Constraint, StaticParams, dof_conditions, equilibrate};
+use crate::statics::{Constraint, Newton, StaticParams, dof_conditions, equilibrate};
 use surgbench_core::sphere_contact::DEFAULT_KAPPA;
 use surgbench_core::{
     DeviceCommand, EnergyObs, EnergyProbe, Model, Observation, SimError, StepStats, TissueBody, TissueObs, Vec3,
@@ -237,9 +237,8 @@ impl Default for LinearStats {
 }
 
 impl FemModel {
-    /// Build from a tissue body (rest mesh, material, fixed and driven
-    /// nodes), gravity (m/s^2), time step (s) and settings.
-    pub fn new(body: &TissueBody, gravity: Vec3, dt: f64, p: DynParams) -> Result<Self, FemError> {
+    /// `dt` (s) and the settings are in range.
+    fn check_settings(dt: f64, p: &DynParams) -> Result<(), FemError> {
         if !(dt > 0.0 && dt.is_finite()) {
             return Err(FemError::BadInput(format!("dt must be > 0 s, got {dt}")));
         }
@@ -253,6 +252,33 @@ impl FemModel {
         {
             return Err(FemError::BadInput(format!("bad dynamic settings {p:?}")));
         }
+        Ok(())
+    }
+
+    /// The sphere `ind` of `body` as a path in the model's local
+    /// coordinates (`origin` subtracted) and its penalty contact with the
+    /// local mesh `local`, penalty factor `kappa`.
+    fn sphere_contact(
+        body: &TissueBody,
+        ind: &surgbench_core::scene::SphereIndenter,
+        local: &surgbench_core::TetMesh,
+        origin: Vec3,
+        kappa: f64,
+    ) -> Result<(surgbench_core::scene::SphereIndenter, SphereContact), FemError> {
+        ind.validate().map_err(FemError::BadInput)?;
+        let c = SphereContact::new(local, &body.material, kappa, ind.centre, ind.radius);
+        // The path in the model's local coordinates.
+        let path = surgbench_core::scene::SphereIndenter {
+            centre: ind.centre - origin,
+            ..*ind
+        };
+        Ok((path, c))
+    }
+
+    /// Build from a tissue body (rest mesh, material, fixed and driven
+    /// nodes), gravity (m/s^2), time step (s) and settings.
+    pub fn new(body: &TissueBody, gravity: Vec3, dt: f64, p: DynParams) -> Result<Self, FemError> {
+        Self::check_settings(dt, &p)?;
         // Work in coordinates relative to the rest mesh's bounding-box centre:
         // positions far from the world origin then cost no digits (the
         // penalty contact's force is k times a gap of ~1e-3 of the depth, and
@@ -292,16 +318,7 @@ impl FemModel {
         let x = solid.rest.clone();
         let contact = match &body.indenter {
             None => None,
-            Some(ind) => {
-                ind.validate().map_err(FemError::BadInput)?;
-                let c = SphereContact::new(&local, &body.material, p.contact_stiffness, ind.centre, ind.radius);
-                // The path in the model's local coordinates.
-                let path = surgbench_core::scene::SphereIndenter {
-                    centre: ind.centre - origin,
-                    ..*ind
-                };
-                Some((path, c))
-            }
+            Some(ind) => Some(Self::sphere_contact(body, ind, &local, origin, p.contact_stiffness)?),
         };
         Ok(Self {
             solid,
@@ -375,6 +392,105 @@ impl FemModel {
         }
     }
 
+    /// Quasi-static step to the command `s`: equilibrium by adaptive load
+    /// stepping ([`Self::load_steps`]), then the hand force (the reaction
+    /// on the driven nodes plus the force on the sphere) and zero velocities.
+    fn quasi_static_step(&mut self, s: f64, t_end: f64) -> Result<StepStats, SimError> {
+        let res = self.load_steps(s);
+        let nt = res.map_err(|e| SimError::SolverFailed {
+            t: t_end,
+            reason: e.to_string(),
+        })?;
+        // Contact forces are in the residual `r`, so a driven node the
+        // sphere touches counts once: in the contact reaction.
+        let mut r = nt.r.clone();
+        if let Some((_, c)) = &self.contact {
+            let mut fc = vec![0.0; r.len()];
+            c.add_forces(&self.x, &mut fc);
+            r.iter_mut().zip(&fc).for_each(|(a, b)| *a -= b);
+            self.hand_force = c.reaction(&self.x);
+        } else {
+            self.hand_force = Vec3::zeros();
+        }
+        self.hand_force += self
+            .driven
+            .iter()
+            .map(|&i| Vec3::new(r[3 * i], r[3 * i + 1], r[3 * i + 2]))
+            .sum::<Vec3>();
+        self.inverted = nt.inverted;
+        self.v.iter_mut().for_each(|v| *v = Vec3::zeros());
+        self.a.iter_mut().for_each(|a| *a = Vec3::zeros());
+        Ok(StepStats {
+            iterations: nt.iterations as u32,
+            residual: nt.residual,
+            converged: true,
+        })
+    }
+
+    /// Adaptive load stepping from the last converged command `s_last` to
+    /// `s`: when Newton fails (not converged, or inverted neo-Hookean
+    /// elements), restart from the last converged state with half the
+    /// increment, at most [`MAX_HALVINGS`] times; after a success keep the
+    /// increment that worked. Leaves the positions reached in `self.x`.
+    fn load_steps(&mut self, s: f64) -> Result<Newton, FemError> {
+        let load: Vec<f64> = self.gravity_load.iter().flat_map(|f| [f.x, f.y, f.z]).collect();
+        let sp = StaticParams {
+            load_steps: 1,
+            tol: self.p.tol,
+            max_newton: self.p.iterations.max(1),
+            solver: self.p.solver,
+            threads: self.p.threads,
+        };
+        let mut x = std::mem::take(&mut self.x);
+        let mut x_ok = x.clone();
+        let (mut lo, mut h) = (self.s_last, s - self.s_last);
+        let mut halvings = 0;
+        let mut its = 0;
+        let res = loop {
+            let hi = if (s - lo).abs() <= h.abs() { s } else { lo + h };
+            for d in 0..self.uc.len() {
+                if !self.sys.free[d] {
+                    x[d / 3][d % 3] = self.solid.rest[d / 3][d % 3] + hi * self.uc[d];
+                }
+            }
+            let pressure = &self.pressure;
+            let follower = move |x: &[Vec3]| Self::pressure_forces(pressure, hi, x);
+            let fol: Option<crate::statics::Follower> = if self.pressure.is_empty() {
+                None
+            } else {
+                Some(&follower)
+            };
+            if let Some((ind, c)) = &mut self.contact {
+                c.centre = ind.centre_at(hi);
+            }
+            let con = self.contact.as_ref().map(|c| &c.1);
+            match equilibrate(&mut self.solid, &mut self.sys, &mut x, &load, fol, con, &sp, 1) {
+                Ok(nt) if hi == s => {
+                    its += nt.iterations;
+                    break Ok(nt);
+                }
+                Ok(nt) => {
+                    its += nt.iterations;
+                    lo = hi;
+                    x_ok.clone_from(&x);
+                }
+                Err(FemError::NotConverged { .. } | FemError::Inverted { .. }) if halvings < MAX_HALVINGS => {
+                    halvings += 1;
+                    h *= 0.5;
+                    x.clone_from(&x_ok);
+                }
+                Err(e) => break Err(e),
+            }
+        };
+        let res = res.map(|mut nt| {
+            nt.iterations = its;
+            nt
+        });
+        self.x = x;
+        self.cached = None;
+        res
+    }
+
     /// One step of length `dt` (s) with the command scale `s` for the driven
     /// displacements.
     pub fn advance(&mut self, dt: f64, s: f64) -> Result<StepStats, SimError> {
@@ -383,94 +499,7 @@ impl FemModel {
         }
         let t_end = self.t + dt;
         let stats = if self.p.integrator == Integrator::QuasiStatic {
-            let load: Vec<f64> = self.gravity_load.iter().flat_map(|f| [f.x, f.y, f.z]).collect();
-            let sp = StaticParams {
-                load_steps: 1,
-                tol: self.p.tol,
-                max_newton: self.p.iterations.max(1),
-                solver: self.p.solver,
-                threads: self.p.threads,
-            };
-            // Adaptive load stepping: go from the last converged command
-            // `s_last` to `s`; when Newton fails (not converged, or inverted
-            // neo-Hookean elements), restart from the last converged state with
-            // half the increment, at most MAX_HALVINGS times; after a success
-            // keep the increment that worked.
-            let mut x = std::mem::take(&mut self.x);
-            let mut x_ok = x.clone();
-            let (mut lo, mut h) = (self.s_last, s - self.s_last);
-            let mut halvings = 0;
-            let mut its = 0;
-            let res = loop {
-                let hi = if (s - lo).abs() <= h.abs() { s } else { lo + h };
-                for d in 0..self.uc.len() {
-                    if !self.sys.free[d] {
-                        x[d / 3][d % 3] = self.solid.rest[d / 3][d % 3] + hi * self.uc[d];
-                    }
-                }
-                let pressure = &self.pressure;
-                let follower = move |x: &[Vec3]| Self::pressure_forces(pressure, hi, x);
-                let fol: Option<crate::statics::Follower> = if self.pressure.is_empty() {
-                    None
-                } else {
-                    Some(&follower)
-                };
-                if let Some((ind, c)) = &mut self.contact {
-                    c.centre = ind.centre_at(hi);
-                }
-                let con = self.contact.as_ref().map(|c| &c.1);
-                match equilibrate(&mut self.solid, &mut self.sys, &mut x, &load, fol, con, &sp, 1) {
-                    Ok(nt) if hi == s => {
-                        its += nt.iterations;
-                        break Ok(nt);
-                    }
-                    Ok(nt) => {
-                        its += nt.iterations;
-                        lo = hi;
-                        x_ok.clone_from(&x);
-                    }
-                    Err(FemError::NotConverged { .. } | FemError::Inverted { .. }) if halvings < MAX_HALVINGS => {
-                        halvings += 1;
-                        h *= 0.5;
-                        x.clone_from(&x_ok);
-                    }
-                    Err(e) => break Err(e),
-                }
-            };
-            let res = res.map(|mut nt| {
-                nt.iterations = its;
-                nt
-            });
-            self.x = x;
-            self.cached = None;
-            let nt = res.map_err(|e| SimError::SolverFailed {
-                t: t_end,
-                reason: e.to_string(),
-            })?;
-            // Contact forces are in the residual `r`, so a driven node the
-            // sphere touches counts once: in the contact reaction.
-            let mut r = nt.r.clone();
-            if let Some((_, c)) = &self.contact {
-                let mut fc = vec![0.0; r.len()];
-                c.add_forces(&self.x, &mut fc);
-                r.iter_mut().zip(&fc).for_each(|(a, b)| *a -= b);
-                self.hand_force = c.reaction(&self.x);
-            } else {
-                self.hand_force = Vec3::zeros();
-            }
-            self.hand_force += self
-                .driven
-                .iter()
-                .map(|&i| Vec3::new(r[3 * i], r[3 * i + 1], r[3 * i + 2]))
-                .sum::<Vec3>();
-            self.inverted = nt.inverted;
-            self.v.iter_mut().for_each(|v| *v = Vec3::zeros());
-            self.a.iter_mut().for_each(|a| *a = Vec3::zeros());
-            StepStats {
-                iterations: nt.iterations as u32,
-                residual: nt.residual,
-                converged: true,
-            }
+            self.quasi_static_step(s, t_end)?
         } else {
             self.dynamic_step(dt, s, t_end)?
         };

@@ -15,62 +15,21 @@ impl Model for MeshlessTissue {
         }
         let n = self.x.len();
         let xn = self.x.clone();
-        let mut stats = StepStats {
-            iterations: 0,
-            residual: 0.0,
-            converged: true,
-        };
         self.load_scale = cmd.insertion;
         if let Some(c) = &mut self.contact {
             c.set_load(cmd.insertion);
         }
-        match self.set.integrator {
+        let stats = match self.set.integrator {
             Integrator::SymplecticEuler => {
-                let x = std::mem::take(&mut self.x);
-                if !self.forces_at_x {
-                    self.internal_forces(&x);
-                }
-                self.pressure_forces(&x);
-                self.x = x;
-                for i in 0..n {
-                    let f = self.forces[i] + self.pforces[i];
-                    let a = f / self.mass[i] + self.gravity - self.v[i] * self.damping;
-                    self.v[i] = (self.v[i] + a * dt).component_mul(&self.axis_free[i]);
-                    self.x[i] += self.v[i] * dt;
-                }
-                let mut x = std::mem::take(&mut self.x);
-                self.apply_targets(&mut x, cmd.insertion);
-                self.x = x;
-            }
-            Integrator::BackwardEuler | Integrator::QuasiStatic => {
-                let dynamic = self.set.integrator == Integrator::BackwardEuler;
-                let xt: Vec<Vec3> = if dynamic {
-                    (0..n).map(|i| xn[i] + self.v[i] * dt).collect()
-                } else {
-                    Vec::new()
-                };
-                let mut x = std::mem::take(&mut self.x);
-                self.apply_targets(&mut x, cmd.insertion);
-                self.x = x;
-                let (a_in, a_damp) = if dynamic {
-                    (1.0 / (dt * dt), self.damping / dt)
-                } else {
-                    (0.0, 0.0)
-                };
-                let info = self.newton(&xn, &xt, a_in, a_damp);
-                stats = StepStats {
-                    iterations: info.iterations,
-                    residual: info.residual,
-                    converged: info.converged,
-                };
-                if !info.residual.is_finite() {
-                    return Err(SimError::Diverged {
-                        t: self.time + dt,
-                        reason: "Newton residual is not finite".into(),
-                    });
+                self.explicit_step(dt, cmd.insertion);
+                StepStats {
+                    iterations: 0,
+                    residual: 0.0,
+                    converged: true,
                 }
             }
-        }
+            Integrator::BackwardEuler | Integrator::QuasiStatic => self.implicit_step(&xn, dt, cmd.insertion)?,
+        };
         if let Some(pbd) = &self.pbd {
             let w: Vec<f64> = (0..n)
                 .map(|i| {
@@ -186,5 +145,63 @@ impl EnergyProbe for MeshlessTissue {
         (0..3 * self.x.len())
             .filter(|&k| self.axis_free[k / 3][k % 3] != 0.0)
             .collect()
+    }
+}
+
+impl MeshlessTissue {
+    /// Symplectic Euler step of length `dt` (s): velocities from the forces
+    /// at the current positions, then positions; the held nodes follow the
+    /// command `insertion`.
+    fn explicit_step(&mut self, dt: f64, insertion: f64) {
+        let n = self.x.len();
+        let x = std::mem::take(&mut self.x);
+        if !self.forces_at_x {
+            self.internal_forces(&x);
+        }
+        self.pressure_forces(&x);
+        self.x = x;
+        for i in 0..n {
+            let f = self.forces[i] + self.pforces[i];
+            let a = f / self.mass[i] + self.gravity - self.v[i] * self.damping;
+            self.v[i] = (self.v[i] + a * dt).component_mul(&self.axis_free[i]);
+            self.x[i] += self.v[i] * dt;
+        }
+        let mut x = std::mem::take(&mut self.x);
+        self.apply_targets(&mut x, insertion);
+        self.x = x;
+    }
+
+    /// Backward Euler (or quasi-static) step from `xn` of length `dt` (s):
+    /// Newton-CG on the step's objective with the held nodes at the command
+    /// `insertion`.
+    fn implicit_step(&mut self, xn: &[Vec3], dt: f64, insertion: f64) -> Result<StepStats, SimError> {
+        let n = self.x.len();
+        let dynamic = self.set.integrator == Integrator::BackwardEuler;
+        let xt: Vec<Vec3> = if dynamic {
+            (0..n).map(|i| xn[i] + self.v[i] * dt).collect()
+        } else {
+            Vec::new()
+        };
+        let mut x = std::mem::take(&mut self.x);
+        self.apply_targets(&mut x, insertion);
+        self.x = x;
+        let (a_in, a_damp) = if dynamic {
+            (1.0 / (dt * dt), self.damping / dt)
+        } else {
+            (0.0, 0.0)
+        };
+        let info = self.newton(xn, &xt, a_in, a_damp);
+        let stats = StepStats {
+            iterations: info.iterations,
+            residual: info.residual,
+            converged: info.converged,
+        };
+        if !info.residual.is_finite() {
+            return Err(SimError::Diverged {
+                t: self.time + dt,
+                reason: "Newton residual is not finite".into(),
+            });
+        }
+        Ok(stats)
     }
 }

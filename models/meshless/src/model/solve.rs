@@ -73,6 +73,70 @@ impl MeshlessTissue {
         }
     }
 
+    /// Newton direction `dx` at `x` with gradient `g`: CG on the masked
+    /// `(H + diag M) dx = -g` to a relative residual of 1e-2, at most
+    /// `max_cg` iterations; on negative curvature (Steihaug) the current
+    /// iterate, or steepest descent if there is none yet. `work` holds the
+    /// CG's residual, direction and product vectors.
+    fn newton_direction(
+        &self,
+        x: &[Vec3],
+        g: &[Vec3],
+        diag: f64,
+        max_cg: usize,
+        dx: &mut [Vec3],
+        work: [&mut Vec<Vec3>; 3],
+    ) {
+        let n = x.len();
+        let [r, p, hp] = work;
+        dx.iter_mut().for_each(|v| *v = Vec3::zeros());
+        let mut rr = 0.0;
+        for i in 0..n {
+            r[i] = -g[i];
+            p[i] = r[i];
+            rr += r[i].norm_squared();
+        }
+        let stop = rr * 1e-4;
+        for k in 0..max_cg {
+            hp.iter_mut().for_each(|v| *v = Vec3::zeros());
+            self.el.add_hess_vec(&self.cache, p, hp);
+            self.pressure.add_sym_stiffness(x, self.load_scale, p, hp);
+            if let Some(c) = &self.contact {
+                c.add_hess_vec(x, p, hp);
+            }
+            let mut php = 0.0;
+            for i in 0..n {
+                hp[i] = (hp[i] + p[i] * (self.mass[i] * diag)).component_mul(&self.axis_free[i]);
+                php += p[i].dot(&hp[i]);
+            }
+            if !(php > 0.0) {
+                // Negative curvature (Steihaug): keep the current iterate,
+                // or steepest descent if there is none yet.
+                if k == 0 {
+                    for i in 0..n {
+                        dx[i] = -g[i];
+                    }
+                }
+                break;
+            }
+            let alpha = rr / php;
+            let mut rr_new = 0.0;
+            for i in 0..n {
+                dx[i] += p[i] * alpha;
+                r[i] -= hp[i] * alpha;
+                rr_new += r[i].norm_squared();
+            }
+            if rr_new <= stop {
+                break;
+            }
+            let beta = rr_new / rr;
+            rr = rr_new;
+            for i in 0..n {
+                p[i] = r[i] + p[i] * beta;
+            }
+        }
+    }
+
     /// Minimise the incremental potential by Newton-CG. `a_in = 1/h^2` and
     /// `a_damp = c/h` weight the inertia and damping terms (0 = quasi-static).
     pub(super) fn newton(&mut self, xn: &[Vec3], xt: &[Vec3], a_in: f64, a_damp: f64) -> SolveInfo {
@@ -102,52 +166,7 @@ impl MeshlessTissue {
                 break;
             }
             // CG on H dx = -g (masked), relative tolerance 1e-2.
-            dx.iter_mut().for_each(|v| *v = Vec3::zeros());
-            let mut rr = 0.0;
-            for i in 0..n {
-                r[i] = -g[i];
-                p[i] = r[i];
-                rr += r[i].norm_squared();
-            }
-            let stop = rr * 1e-4;
-            for k in 0..max_cg {
-                hp.iter_mut().for_each(|v| *v = Vec3::zeros());
-                self.el.add_hess_vec(&self.cache, &p, &mut hp);
-                self.pressure.add_sym_stiffness(&x, self.load_scale, &p, &mut hp);
-                if let Some(c) = &self.contact {
-                    c.add_hess_vec(&x, &p, &mut hp);
-                }
-                let mut php = 0.0;
-                for i in 0..n {
-                    hp[i] = (hp[i] + p[i] * (self.mass[i] * diag)).component_mul(&self.axis_free[i]);
-                    php += p[i].dot(&hp[i]);
-                }
-                if !(php > 0.0) {
-                    // Negative curvature (Steihaug): keep the current iterate,
-                    // or steepest descent if there is none yet.
-                    if k == 0 {
-                        for i in 0..n {
-                            dx[i] = -g[i];
-                        }
-                    }
-                    break;
-                }
-                let alpha = rr / php;
-                let mut rr_new = 0.0;
-                for i in 0..n {
-                    dx[i] += p[i] * alpha;
-                    r[i] -= hp[i] * alpha;
-                    rr_new += r[i].norm_squared();
-                }
-                if rr_new <= stop {
-                    break;
-                }
-                let beta = rr_new / rr;
-                rr = rr_new;
-                for i in 0..n {
-                    p[i] = r[i] + p[i] * beta;
-                }
-            }
+            self.newton_direction(&x, &g, diag, max_cg, &mut dx, [&mut r, &mut p, &mut hp]);
             // Armijo backtracking on the potential.
             let frozen = std::mem::take(&mut self.pforces);
             let phi0 = self.objective(&x, xn, xt, a_in, a_damp, &frozen);

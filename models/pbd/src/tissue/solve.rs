@@ -83,8 +83,11 @@ impl PbdTissue {
         };
     }
 
-    pub(super) fn substep(&mut self, h: f64, ins: f64) {
-        self.last_h = h;
+    /// Start of a substep of length `h` (s) at the command `ins`: damped
+    /// velocities plus gravity move the free active nodes, the driven nodes
+    /// jump to their commanded positions, and the multipliers (and the
+    /// sphere's, which moves to its place) restart from zero.
+    fn predict(&mut self, h: f64, ins: f64) {
         let damp = 1.0 / (1.0 + self.set.damping * h);
         for &i in &self.active.nodes {
             let i = i as usize;
@@ -108,6 +111,11 @@ impl PbdTissue {
             sp.lambda.iter_mut().for_each(|l| *l = 0.0);
             sp.impulse = Vec3::zeros();
         }
+    }
+
+    pub(super) fn substep(&mut self, h: f64, ins: f64) {
+        self.last_h = h;
+        self.predict(h, ins);
         let h2 = h * h;
         let iters = self.set.iterations;
         // Positions move to the shared (atomic) buffer for the solve: only the
