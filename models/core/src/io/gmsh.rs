@@ -9,7 +9,7 @@ use std::path::Path;
 /// Read an ASCII Gmsh MSH 4.x file (`$Nodes` and `$Elements` sections; other
 /// sections are skipped). Only 4-node tetrahedra (element type 4) are kept;
 /// lower-dimensional elements are ignored. Coordinates are taken as metres
-/// (use [`scaled`] for files in mm). Tets are re-oriented positive.
+/// (use [`crate::mesh::scaled`] for files in mm). Tets are re-oriented positive.
 pub fn read_gmsh_v4(path: impl AsRef<Path>) -> Result<TetMesh, MeshError> {
     let path = path.as_ref();
     parse_gmsh_v4(&path.display().to_string(), &read_text(path)?)

@@ -39,7 +39,7 @@
 //! transverse torque converges linearly), and optional per-node dead forces
 //! ([`DerRod::set_node_force`], e.g. for coupling). Tip force and torque
 //! may vary in time through a ramp `s(t)` ([`DerRod::tip_load_ramp`], from
-//! [`RodBody::tip_load_ramp`]): like every implicit scheme that imposes
+//! [`surgbench_core::RodBody::tip_load_ramp`]): like every implicit scheme that imposes
 //! equilibrium at the end of the step (backward Euler, Newmark), a (sub)step
 //! from `t` to `t + dt` applies `s(t + dt) F`; statics apply `s(t)`.
 //!
