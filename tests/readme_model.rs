@@ -55,7 +55,15 @@ fn the_example_scores_as_the_rigid_limit() {
     let p = Params::resolve("cantilever-gravity", CANTILEVER_GRAVITY.params(), &[]).unwrap();
     let run = CANTILEVER_GRAVITY.instantiate(&p).unwrap();
     let fid = Fidelity::default();
-    let s = run_single(&CANTILEVER_GRAVITY, &p, &run, &RigidRodFactory, &fid, &RunOptions::default()).unwrap();
+    let s = run_single(
+        &CANTILEVER_GRAVITY,
+        &p,
+        &run,
+        &RigidRodFactory,
+        &fid,
+        &RunOptions::default(),
+    )
+    .unwrap();
     assert_eq!(s.status.to_string(), "ok", "{}", s.reason);
     // The rigid tip stays at (L, 0, 0): its error is the whole deflection.
     assert!((s.errors["tip_error_rel"] - 1.0).abs() < 1e-12, "{:?}", s.errors);
@@ -64,7 +72,11 @@ fn the_example_scores_as_the_rigid_limit() {
     assert!(s.errors["hand_force_error_rel"] < 1e-12, "{:?}", s.errors);
     // Twist is not in its capabilities: refused with the missing name.
     let why = RigidRodFactory
-        .check(ResolvedRun::new("torque-transfer", "der", &[], Fidelity::default()).unwrap().scene())
+        .check(
+            ResolvedRun::new("torque-transfer", "der", &[], Fidelity::default())
+                .unwrap()
+                .scene(),
+        )
         .unwrap_err();
     assert!(why.reason.contains("twist"), "{}", why.reason);
 }

@@ -175,6 +175,9 @@ fn frame_difference(a: &Observation, b: &Observation, iso: &Isometry3<f64>) -> R
 /// Pairs listed in `known` must still differ (strict expected failures).
 pub fn rigid_motion(f: &dyn ModelFactory, known: &[KnownDefect]) -> Result<Vec<String>, String> {
     let (general, permuting) = motions();
+    if surgbench_core::frames::axis_permutation(&permuting).is_none() {
+        return Err("the roller-scene motion does not map axes to axes".into());
+    }
     let mut notes = Vec::new();
     for (sid, scene) in supported(f) {
         let rollers = scene.tissues().any(|t| !t.partial_fixed.is_empty());

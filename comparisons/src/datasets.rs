@@ -3,7 +3,7 @@
 
 use crate::scenario::UsageError;
 use std::path::{Path, PathBuf};
-use surgbench_core::mesh::truth_cube;
+use surgbench_core::io::truth_cube;
 
 /// Where the scenario reference data live: `$SURGBENCH_DATASETS` or the
 /// repository's `datasets/`.

@@ -19,7 +19,8 @@ use surgbench_comparisons::scenario::{Params, Scenario, ScenarioRun};
 use surgbench_comparisons::scenarios::tissue::{
     self, BLOCK_COMPRESSION, CubeFrame, LAME_TUBE, TRUTH_CUBE, TRUTH_CUBE_EDGE, VOLUME_PRESERVATION,
 };
-use surgbench_core::mesh::{self, truth_cube};
+use surgbench_core::io::truth_cube;
+use surgbench_core::mesh;
 use surgbench_core::rng::SplitMix64;
 use surgbench_core::{Capability, Family, Fidelity, Mat3, Observation, TetMesh, TissueObs, Vec3};
 

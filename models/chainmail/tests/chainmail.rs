@@ -2,10 +2,11 @@
 //! limits, determinism, calibration and the factory contract.
 
 use std::sync::Arc;
+use surgbench_chainmail::calibration;
 use surgbench_chainmail::mapping::{self, BETA_CONSTANT};
 use surgbench_chainmail::rules::{self, LinkParams};
 use surgbench_chainmail::{BoxFrame, ChainmailFactory, ChainmailWire, WireConfig};
-use surgbench_core::scene::FlowField;
+use surgbench_core::flow::FlowField;
 use surgbench_core::sdf::StraightTube;
 use surgbench_core::{BuildError, DeviceCommand, Fidelity, Iso3, Mat3, ModelFactory, RodBody, Scene, SimError, Vec3};
 
@@ -185,7 +186,7 @@ fn larger_beta_sags_more_when_boxes_bind() {
 
 #[test]
 fn calibration_reproduces_the_committed_constant() {
-    let c = mapping::calibrate_beta_constant().unwrap();
+    let c = calibration::calibrate_beta_constant().unwrap();
     eprintln!("{c:?}");
     // bisection stops at a relative bracket of 1e-6; the committed value is
     // rounded to 7 significant digits
@@ -203,7 +204,7 @@ fn gravity_sag_depends_on_fidelity() {
     // not a pass/fail physics claim: records that the calibrated model does
     // not converge under refinement (beta ~ Delta^3, sag ~ relaxation vs g dt^2)
     let s = cantilever(9.81);
-    let target = mapping::calibration_target();
+    let target = calibration::calibration_target();
     let mut out = Vec::new();
     for (n, dt, it) in [(20, 1e-2, 10), (40, 1e-2, 10), (20, 1e-3, 10), (20, 1e-2, 40)] {
         let mut c = cfg(dt, None, BoxFrame::World);
@@ -752,7 +753,7 @@ fn navigation_mapping_allows_more_bend_than_the_weight_mapping() {
     // weight pull the cantilever much further down than Euler-Bernoulli
     // (the navigation mapping gives up the cantilever it was not made for)
     let s = cantilever(9.81);
-    let target = mapping::calibration_target();
+    let target = calibration::calibration_target();
     let mut sag = Vec::new();
     for m in [BetaMapping::Weight, BetaMapping::Navigation { yield_strain: EPS }] {
         let mut c = cfg(1e-2, None, BoxFrame::Link);

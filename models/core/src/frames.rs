@@ -1,7 +1,7 @@
 //! Frame utilities rod models share: parallel transport and signed angles
 //! (Bergou et al. 2008, "Discrete Elastic Rods", section 4.2).
 
-use crate::Vec3;
+use crate::{Iso3, Vec3};
 
 /// Parallel-transport `u` from the unit tangent `t0` to the unit tangent `t1`:
 /// rotate about `t0 x t1` by the angle between them. Exact for `t0 == t1`;
@@ -34,6 +34,19 @@ pub fn signed_angle(u: &Vec3, v: &Vec3, axis: &Vec3) -> f64 {
 pub fn rotate_about(v: &Vec3, axis: &Vec3, angle: f64) -> Vec3 {
     let (s, c) = angle.sin_cos();
     v * c + axis.cross(v) * s + axis * (axis.dot(v) * (1.0 - c))
+}
+
+/// If `iso`'s rotation maps world axes onto world axes (a signed
+/// permutation), the source axis of each new axis; else `None`.
+pub fn axis_permutation(iso: &Iso3) -> Option<[usize; 3]> {
+    let r = iso.rotation.to_rotation_matrix();
+    let m = r.matrix();
+    let mut perm = [0usize; 3];
+    for i in 0..3 {
+        let j = (0..3).find(|&j| (m[(i, j)].abs() - 1.0).abs() < 1e-12)?;
+        perm[i] = j;
+    }
+    Some(perm)
 }
 
 #[cfg(test)]

@@ -21,6 +21,7 @@
 //! ```
 
 use crate::Vec3;
+use crate::io::table;
 use crate::scene::{ControlKey, ControlTimeline, DeviceCommand};
 use std::fmt;
 use std::path::Path;
@@ -139,25 +140,22 @@ impl Session {
             column: column.to_string(),
             what,
         };
-        let mut lines = text
-            .lines()
-            .enumerate()
-            .map(|(i, l)| (i + 1, l.trim()))
-            .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
-        let (hl, header) = lines
-            .next()
+        let rows = table::rows(text, true).map_err(|(line, what)| err(line, "", what))?;
+        let (header, samples) = rows
+            .split_first()
             .ok_or_else(|| err(0, "", "empty session: no header line".into()))?;
-        let names: Vec<&str> = header.split(',').map(str::trim).collect();
+        let hl = header.line;
         let col = |name: &str| {
-            names
-                .iter()
-                .position(|n| *n == name)
-                .ok_or_else(|| err(hl, name, format!("header `{header}` has no `{name}` column")))
+            table::column(&header.cells, name).ok_or_else(|| {
+                let line = text.lines().nth(hl - 1).unwrap_or("").trim();
+                err(hl, name, format!("header `{line}` has no `{name}` column"))
+            })
         };
         let (ct, ci, cr) = (col("t")?, col("insertion")?, col("rotation")?);
+        let names = &header.cells;
         let mut keys: Vec<ControlKey> = Vec::new();
-        for (ln, line) in lines {
-            let cells: Vec<&str> = line.split(',').map(str::trim).collect();
+        for row in samples {
+            let (ln, cells) = (row.line, &row.cells);
             if cells.len() != names.len() {
                 return Err(err(
                     ln,
@@ -170,7 +168,7 @@ impl Session {
                     .parse::<f64>()
                     .ok()
                     .filter(|v| v.is_finite())
-                    .ok_or_else(|| err(ln, names[c], format!("`{}` is not a finite number", cells[c])))
+                    .ok_or_else(|| err(ln, &names[c], format!("`{}` is not a finite number", &cells[c])))
             };
             let key = ControlKey {
                 t: num(ct)?,

@@ -18,11 +18,16 @@
 
 /// Banded symmetric positive-definite (Cholesky) solver shared by the rod models.
 pub mod band;
+pub mod beam;
+pub mod capability;
 pub mod contact;
 pub mod error;
 pub mod fidelity;
+pub mod flow;
 pub mod frames;
 pub mod haptic;
+pub mod io;
+pub mod material;
 pub mod mesh;
 pub mod model;
 pub mod motion;
@@ -30,15 +35,20 @@ pub mod observation;
 pub mod rng;
 pub mod scene;
 pub mod sdf;
+pub mod sphere_contact;
 pub mod vessel;
 
+pub use capability::{Capability, Family};
 pub use error::{BuildError, SimError, Unsupported};
 pub use fidelity::{Fidelity, FidelityKey};
-pub use model::{Capability, EnergyProbe, Family, Model, ModelFactory, StepStats};
+pub use flow::FlowField;
+pub use material::SolidMaterial;
+pub use mesh::TetMesh;
+pub use model::{EnergyProbe, Model, ModelFactory, StepStats};
 pub use observation::{ContactObs, EnergyObs, Observation, RodObs, TissueObs};
 pub use scene::{
     Body, ContactParams, ControlKey, ControlTimeline, DeviceCommand, Environment, LoadRamp, RodBody, RodSection, Scene,
-    Settle, SolidMaterial, SphereIndenter, TetMesh, TissueBody,
+    Settle, SphereIndenter, TissueBody,
 };
 pub use sdf::Sdf;
 

@@ -1,8 +1,7 @@
 //! Tetrahedral meshing shared by every tissue model and tissue scenario:
 //! structured builders ([`block`], [`tube`], [`tube_sector`]), node sets by
-//! predicate, boundary faces, mesh quality ([`quality`]), ASCII readers for
-//! Gmsh v4 ([`read_gmsh_v4`]) and Medit ([`read_medit`]) files, and the
-//! Truth Cube phantom loader ([`truth_cube::load`]).
+//! predicate, boundary faces, mesh quality ([`quality`]), and the
+//! [`TetMesh`] type itself; file readers are in [`crate::io`].
 //!
 //! Units are SI (metres). Every builder returns positively oriented tets
 //! (`(b - a) x (c - a) . (d - a) > 0`).
@@ -24,15 +23,63 @@
 //! ```
 
 use crate::Vec3;
-use crate::scene::TetMesh;
 use std::collections::HashMap;
-use std::fmt;
-use std::path::Path;
+
+/// Linear tetrahedral mesh: node positions (m) and 4-node elements.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct TetMesh {
+    /// Node positions (m).
+    pub nodes: Vec<Vec3>,
+    /// Elements as node indices.
+    pub tets: Vec<[usize; 4]>,
+}
+
+impl TetMesh {
+    /// Check indices and that no element is degenerate.
+    pub fn validate(&self) -> Result<(), String> {
+        for (e, t) in self.tets.iter().enumerate() {
+            for &i in t {
+                if i >= self.nodes.len() {
+                    return Err(format!(
+                        "tet {e} refers to node {i} but the mesh has {} nodes",
+                        self.nodes.len()
+                    ));
+                }
+            }
+            let [a, b, c, d] = t.map(|i| self.nodes[i]);
+            let vol = tet_volume(&a, &b, &c, &d);
+            if !(vol.abs() > 0.0) {
+                return Err(format!("tet {e} is degenerate (volume {vol})"));
+            }
+        }
+        Ok(())
+    }
+}
 
 /// Signed volume of the tet `(a, b, c, d)` (m^3); positive when
 /// `(b - a) x (c - a)` points towards `d`.
+#[inline]
 pub fn tet_volume(a: &Vec3, b: &Vec3, c: &Vec3, d: &Vec3) -> f64 {
     (b - a).cross(&(c - a)).dot(&(d - a)) / 6.0
+}
+
+/// [`tet_volume`] of the four corners `p` (m^3).
+#[inline]
+pub fn tet_volume_of(p: &[Vec3; 4]) -> f64 {
+    tet_volume(&p[0], &p[1], &p[2], &p[3])
+}
+
+/// Gradients of [`tet_volume`] with respect to `p1..p4` (m^2):
+/// `(1/6)(p4-p2) x (p3-p2)`, `(1/6)(p3-p1) x (p4-p1)`,
+/// `(1/6)(p4-p1) x (p2-p1)`, `(1/6)(p2-p1) x (p3-p1)`.
+pub fn tet_volume_gradients(p: &[Vec3; 4]) -> [Vec3; 4] {
+    let s = 1.0 / 6.0;
+    [
+        (p[3] - p[1]).cross(&(p[2] - p[1])) * s,
+        (p[2] - p[0]).cross(&(p[3] - p[0])) * s,
+        (p[3] - p[0]).cross(&(p[1] - p[0])) * s,
+        (p[1] - p[0]).cross(&(p[2] - p[0])) * s,
+    ]
 }
 
 /// Kuhn subdivision of the unit cube: corner `k` has offset bits
@@ -302,455 +349,6 @@ pub fn orient_positive(mesh: &mut TetMesh) -> usize {
     flipped
 }
 
-/// A mesh file could not be read: which file, which line (1-based; 0 when
-/// the problem is not tied to a line) and what is wrong.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct MeshError {
-    /// File name (or the label given to a parser).
-    pub file: String,
-    /// 1-based line number, 0 for whole-file problems.
-    pub line: usize,
-    /// What is wrong.
-    pub what: String,
-}
-
-impl fmt::Display for MeshError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}:{}: {}", self.file, self.line, self.what)
-    }
-}
-
-impl std::error::Error for MeshError {}
-
-/// Whitespace-separated tokens with their 1-based line numbers.
-struct Tokens<'a> {
-    file: &'a str,
-    toks: Vec<(usize, &'a str)>,
-    pos: usize,
-    last_line: usize,
-}
-
-impl<'a> Tokens<'a> {
-    fn new(file: &'a str, text: &'a str, comment: Option<char>) -> Self {
-        let mut toks = Vec::new();
-        for (ln, line) in text.lines().enumerate() {
-            let line = match comment {
-                Some(c) => line.split(c).next().unwrap_or(""),
-                None => line,
-            };
-            toks.extend(line.split_whitespace().map(|t| (ln + 1, t)));
-        }
-        let last_line = text.lines().count();
-        Self {
-            file,
-            toks,
-            pos: 0,
-            last_line,
-        }
-    }
-    fn err(&self, line: usize, what: impl Into<String>) -> MeshError {
-        MeshError {
-            file: self.file.to_string(),
-            line,
-            what: what.into(),
-        }
-    }
-    fn next(&mut self, expecting: &str) -> Result<(usize, &'a str), MeshError> {
-        let t = self
-            .toks
-            .get(self.pos)
-            .copied()
-            .ok_or_else(|| self.err(self.last_line, format!("unexpected end of file, expecting {expecting}")))?;
-        self.pos += 1;
-        Ok(t)
-    }
-    fn peek(&self) -> Option<(usize, &'a str)> {
-        self.toks.get(self.pos).copied()
-    }
-    fn usize(&mut self, what: &str) -> Result<usize, MeshError> {
-        let (ln, t) = self.next(what)?;
-        t.parse()
-            .map_err(|_| self.err(ln, format!("expected {what} (non-negative integer), found `{t}`")))
-    }
-    fn f64(&mut self, what: &str) -> Result<f64, MeshError> {
-        let (ln, t) = self.next(what)?;
-        match t.parse::<f64>() {
-            Ok(v) if v.is_finite() => Ok(v),
-            _ => Err(self.err(ln, format!("expected {what} (finite number), found `{t}`"))),
-        }
-    }
-    fn expect(&mut self, word: &str) -> Result<usize, MeshError> {
-        let (ln, t) = self.next(word)?;
-        if t.eq_ignore_ascii_case(word) {
-            Ok(ln)
-        } else {
-            Err(self.err(ln, format!("expected `{word}`, found `{t}`")))
-        }
-    }
-}
-
-fn read_text(path: &Path) -> Result<String, MeshError> {
-    std::fs::read_to_string(path).map_err(|e| MeshError {
-        file: path.display().to_string(),
-        line: 0,
-        what: format!("cannot read: {e}"),
-    })
-}
-
-fn finish_mesh(file: &str, nodes: Vec<Vec3>, tets: Vec<([usize; 4], usize)>) -> Result<TetMesh, MeshError> {
-    if tets.is_empty() {
-        return Err(MeshError {
-            file: file.to_string(),
-            line: 0,
-            what: "no tetrahedra (4-node elements) in the file".into(),
-        });
-    }
-    let mut mesh = TetMesh {
-        nodes,
-        tets: tets.iter().map(|(t, _)| *t).collect(),
-    };
-    for (t, ln) in &tets {
-        let [a, b, c, d] = t.map(|i| mesh.nodes[i]);
-        if tet_volume(&a, &b, &c, &d) == 0.0 {
-            return Err(MeshError {
-                file: file.to_string(),
-                line: *ln,
-                what: format!("degenerate tetrahedron {t:?} (zero volume)"),
-            });
-        }
-    }
-    orient_positive(&mut mesh);
-    Ok(mesh)
-}
-
-/// Read an ASCII Gmsh MSH 4.x file (`$Nodes` and `$Elements` sections; other
-/// sections are skipped). Only 4-node tetrahedra (element type 4) are kept;
-/// lower-dimensional elements are ignored. Coordinates are taken as metres
-/// (use [`scaled`] for files in mm). Tets are re-oriented positive.
-pub fn read_gmsh_v4(path: impl AsRef<Path>) -> Result<TetMesh, MeshError> {
-    let path = path.as_ref();
-    parse_gmsh_v4(&path.display().to_string(), &read_text(path)?)
-}
-
-/// Parse the text of an ASCII Gmsh MSH 4.x file; `file` labels errors.
-pub fn parse_gmsh_v4(file: &str, text: &str) -> Result<TetMesh, MeshError> {
-    let mut tk = Tokens::new(file, text, None);
-    let mut tags: HashMap<usize, usize> = HashMap::new();
-    let mut nodes: Vec<Vec3> = Vec::new();
-    let mut tets: Vec<([usize; 4], usize)> = Vec::new();
-    let mut raw_tets: Vec<([usize; 4], usize)> = Vec::new();
-    let mut seen_format = false;
-    while let Some((ln, t)) = tk.peek() {
-        tk.pos += 1;
-        match t {
-            "$MeshFormat" => {
-                let (vln, v) = tk.next("format version")?;
-                let ver: f64 = v
-                    .parse()
-                    .map_err(|_| tk.err(vln, format!("bad format version `{v}`")))?;
-                if !(4.0..5.0).contains(&ver) {
-                    return Err(tk.err(vln, format!("MSH version {v} is not supported (need 4.x)")));
-                }
-                let ft = tk.usize("file type")?;
-                if ft != 0 {
-                    return Err(tk.err(vln, "binary MSH files are not supported (file type 1); save as ASCII"));
-                }
-                tk.usize("data size")?;
-                tk.expect("$EndMeshFormat")?;
-                seen_format = true;
-            }
-            "$Nodes" => {
-                let blocks = tk.usize("numEntityBlocks")?;
-                let total = tk.usize("numNodes")?;
-                tk.usize("minNodeTag")?;
-                tk.usize("maxNodeTag")?;
-                nodes.reserve(total);
-                for _ in 0..blocks {
-                    let dim = tk.usize("entityDim")?;
-                    tk.next("entityTag")?;
-                    let parametric = tk.usize("parametric flag")?;
-                    let n = tk.usize("numNodesInBlock")?;
-                    let mut block_tags = Vec::with_capacity(n);
-                    for _ in 0..n {
-                        let (tl, _) = tk.peek().unwrap_or((ln, ""));
-                        let tag = tk.usize("node tag")?;
-                        if tags.contains_key(&tag) {
-                            return Err(tk.err(tl, format!("duplicate node tag {tag}")));
-                        }
-                        block_tags.push(tag);
-                    }
-                    for tag in block_tags {
-                        let p = Vec3::new(tk.f64("x")?, tk.f64("y")?, tk.f64("z")?);
-                        if parametric == 1 {
-                            for _ in 0..dim.min(3) {
-                                tk.f64("parametric coordinate")?;
-                            }
-                        }
-                        tags.insert(tag, nodes.len());
-                        nodes.push(p);
-                    }
-                }
-                if nodes.len() != total {
-                    return Err(tk.err(
-                        ln,
-                        format!("$Nodes declares {total} nodes but its blocks hold {}", nodes.len()),
-                    ));
-                }
-                tk.expect("$EndNodes")?;
-            }
-            "$Elements" => {
-                let blocks = tk.usize("numEntityBlocks")?;
-                tk.usize("numElements")?;
-                tk.usize("minElementTag")?;
-                tk.usize("maxElementTag")?;
-                for _ in 0..blocks {
-                    tk.usize("entityDim")?;
-                    tk.next("entityTag")?;
-                    let (tl, _) = tk.peek().unwrap_or((ln, ""));
-                    let ty = tk.usize("elementType")?;
-                    let n = tk.usize("numElementsInBlock")?;
-                    let nn = match ty {
-                        15 => 1,
-                        1 => 2,
-                        2 => 3,
-                        3 => 4,
-                        4 => 4,
-                        5 => 8,
-                        6 => 6,
-                        7 => 5,
-                        8 => 3,
-                        9 => 6,
-                        11 => 10,
-                        _ => return Err(tk.err(tl, format!("element type {ty} is not supported"))),
-                    };
-                    for _ in 0..n {
-                        let (el, _) = tk.peek().unwrap_or((ln, ""));
-                        tk.usize("element tag")?;
-                        let mut v = [0usize; 10];
-                        for slot in v.iter_mut().take(nn) {
-                            *slot = tk.usize("element node tag")?;
-                        }
-                        if ty == 4 {
-                            raw_tets.push(([v[0], v[1], v[2], v[3]], el));
-                        }
-                    }
-                }
-                tk.expect("$EndElements")?;
-            }
-            s if s.starts_with('$') && !s.starts_with("$End") => {
-                // Skip an unknown section up to its end marker.
-                let end = format!("$End{}", &s[1..]);
-                loop {
-                    let (_, w) = tk.next(&end)?;
-                    if w == end {
-                        break;
-                    }
-                }
-            }
-            other => return Err(tk.err(ln, format!("unexpected `{other}` outside any section"))),
-        }
-    }
-    if !seen_format {
-        return Err(tk.err(1, "missing $MeshFormat section (is this a Gmsh file?)"));
-    }
-    for (t, el) in raw_tets {
-        let mut idx = [0usize; 4];
-        for (k, tag) in t.iter().enumerate() {
-            idx[k] = *tags
-                .get(tag)
-                .ok_or_else(|| tk.err(el, format!("element refers to node tag {tag}, which is not in $Nodes")))?;
-        }
-        tets.push((idx, el));
-    }
-    finish_mesh(file, nodes, tets)
-}
-
-/// Read an ASCII Medit `.mesh` file (`Vertices` and `Tetrahedra`; other
-/// keywords with counted records are skipped; `#` starts a comment). Indices
-/// are 1-based in the file. Coordinates are taken as metres.
-pub fn read_medit(path: impl AsRef<Path>) -> Result<TetMesh, MeshError> {
-    let path = path.as_ref();
-    parse_medit(&path.display().to_string(), &read_text(path)?)
-}
-
-/// Parse the text of an ASCII Medit `.mesh` file; `file` labels errors.
-pub fn parse_medit(file: &str, text: &str) -> Result<TetMesh, MeshError> {
-    let mut tk = Tokens::new(file, text, Some('#'));
-    let mut nodes: Vec<Vec3> = Vec::new();
-    let mut tets = Vec::new();
-    let mut seen_version = false;
-    while let Some((ln, t)) = tk.peek() {
-        tk.pos += 1;
-        match t.to_ascii_lowercase().as_str() {
-            "meshversionformatted" => {
-                let v = tk.usize("mesh version")?;
-                if v == 0 || v > 3 {
-                    return Err(tk.err(ln, format!("unsupported MeshVersionFormatted {v}")));
-                }
-                seen_version = true;
-            }
-            "dimension" => {
-                let dim = tk.usize("dimension")?;
-                if dim != 3 {
-                    return Err(tk.err(ln, format!("only Dimension 3 is supported, found {dim}")));
-                }
-            }
-            "vertices" => {
-                let n = tk.usize("vertex count")?;
-                nodes.reserve(n);
-                for _ in 0..n {
-                    let p = Vec3::new(tk.f64("x")?, tk.f64("y")?, tk.f64("z")?);
-                    tk.usize("vertex reference")?;
-                    nodes.push(p);
-                }
-            }
-            "tetrahedra" => {
-                let n = tk.usize("tetrahedron count")?;
-                for _ in 0..n {
-                    let (el, _) = tk.peek().unwrap_or((ln, ""));
-                    let mut v = [0usize; 4];
-                    for slot in &mut v {
-                        let i = tk.usize("vertex index")?;
-                        if i == 0 || i > nodes.len() {
-                            return Err(tk.err(
-                                el,
-                                format!(
-                                    "tetrahedron refers to vertex {i}, but {} vertices were read (1-based)",
-                                    nodes.len()
-                                ),
-                            ));
-                        }
-                        *slot = i - 1;
-                    }
-                    tk.usize("tetrahedron reference")?;
-                    tets.push((v, el));
-                }
-            }
-            "end" => break,
-            kw => {
-                // Known element keywords we skip: count, then per-record
-                // vertex indices plus one reference.
-                let per = match kw {
-                    "edges" => 3,
-                    "triangles" => 4,
-                    "quadrilaterals" => 5,
-                    "hexahedra" => 9,
-                    "corners" | "requiredvertices" | "ridges" | "requirededges" => 1,
-                    _ => return Err(tk.err(ln, format!("unknown keyword `{t}`"))),
-                };
-                let n = tk.usize("record count")?;
-                for _ in 0..n * per {
-                    tk.usize("index")?;
-                }
-            }
-        }
-    }
-    if !seen_version {
-        return Err(tk.err(1, "missing MeshVersionFormatted (is this a Medit file?)"));
-    }
-    finish_mesh(file, nodes, tets)
-}
-
-/// The Truth Cube phantom (Kerdok et al. 2003, Medical Image Analysis
-/// 7(3):283-291): bead positions of a silicone cube under uniaxial
-/// compression, as redistributed with OpenSurgSim (Apache-2.0).
-pub mod truth_cube {
-    use crate::Vec3;
-    use std::path::Path;
-
-    /// Nominal compressive strains of the four states in the file.
-    pub const NOMINAL_STRAINS: [f64; 4] = [0.0, 0.05, 0.125, 0.1825];
-
-    /// One bead: grid indices (1..=7) and its position in each state (m).
-    #[derive(Debug, Clone, PartialEq)]
-    pub struct Bead {
-        /// Grid indices `(i, j, k)`, 1-based as in the file.
-        pub index: [u8; 3],
-        /// Position at nominal strain 0, 5, 12.5 and 18.25 % (m).
-        pub positions: [Vec3; 4],
-    }
-
-    /// All beads of the uniaxial test.
-    #[derive(Debug, Clone, PartialEq)]
-    pub struct TruthCube {
-        /// Beads in file order.
-        pub beads: Vec<Bead>,
-    }
-
-    const COLUMNS: [&str; 15] = [
-        "i", "j", "k", "x0", "y0", "z0", "x1", "y1", "z1", "x2", "y2", "z2", "x3", "y3", "z3",
-    ];
-
-    /// Load the CSV (`truth-cube-uniaxial.csv`): free-text lines, then a
-    /// header row naming `i,j,k,x0,y0,z0,...,x3,y3,z3`, then one row per bead
-    /// in millimetres. Positions are converted to metres. Errors name the
-    /// file, the line and the missing column or bad value.
-    pub fn load(path: impl AsRef<Path>) -> Result<TruthCube, String> {
-        let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
-        parse(&path.display().to_string(), &text)
-    }
-
-    /// Parse the CSV text; `file` labels errors. See [`load`].
-    pub fn parse(file: &str, text: &str) -> Result<TruthCube, String> {
-        let lines: Vec<&str> = text.lines().collect();
-        let header_at = lines
-            .iter()
-            .position(|l| l.split(',').next().map(str::trim) == Some("i"))
-            .ok_or_else(|| format!("{file}: no header row starting with column `i`"))?;
-        let header: Vec<&str> = lines[header_at].split(',').map(str::trim).collect();
-        let mut col = [0usize; 15];
-        for (c, name) in COLUMNS.iter().enumerate() {
-            col[c] = header
-                .iter()
-                .position(|h| h == name)
-                .ok_or_else(|| format!("{file}:{}: missing column `{name}`", header_at + 1))?;
-        }
-        let mut beads = Vec::new();
-        let mut seen = std::collections::HashSet::new();
-        for (ln, line) in lines.iter().enumerate().skip(header_at + 1) {
-            if line.trim().trim_matches(',').is_empty() {
-                continue;
-            }
-            let cells: Vec<&str> = line.split(',').map(str::trim).collect();
-            let get = |c: usize| -> Result<f64, String> {
-                let s = cells
-                    .get(col[c])
-                    .ok_or_else(|| format!("{file}:{}: row has no column `{}`", ln + 1, COLUMNS[c]))?;
-                s.parse::<f64>()
-                    .ok()
-                    .filter(|v| v.is_finite())
-                    .ok_or_else(|| format!("{file}:{}: column `{}` is not a number: `{s}`", ln + 1, COLUMNS[c]))
-            };
-            let mut index = [0u8; 3];
-            for a in 0..3 {
-                let v = get(a)?;
-                if !(1.0..=7.0).contains(&v) || v.fract() != 0.0 {
-                    return Err(format!(
-                        "{file}:{}: bead index `{}` = {v} is not in 1..=7",
-                        ln + 1,
-                        COLUMNS[a]
-                    ));
-                }
-                index[a] = v as u8;
-            }
-            let mut positions = [Vec3::zeros(); 4];
-            for (s, p) in positions.iter_mut().enumerate() {
-                *p = Vec3::new(get(3 + 3 * s)?, get(4 + 3 * s)?, get(5 + 3 * s)?) * 1e-3;
-            }
-            // The redistributed file repeats a few trailing rows; keep the
-            // first occurrence of each bead.
-            if seen.insert(index) {
-                beads.push(Bead { index, positions });
-            }
-        }
-        if beads.is_empty() {
-            return Err(format!("{file}: no bead rows after the header"));
-        }
-        Ok(TruthCube { beads })
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -836,102 +434,6 @@ mod tests {
         assert!(
             (q.min_dihedral_deg - 45.0).abs() < 1e-9 && (q.max_dihedral_deg - 90.0).abs() < 1e-9,
             "{q:?}"
-        );
-    }
-
-    const GMSH: &str = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Entities\n0 0 0 1\n1 0 0 0 1 1 1 0 0\n$EndEntities\n\
-$Nodes\n1 5 1 5\n3 1 0 5\n1\n2\n3\n4\n5\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 1 1\n$EndNodes\n\
-$Elements\n2 3 1 3\n2 1 2 1\n1 1 2 3\n3 1 4 2\n2 1 3 2 4\n3 2 4 3 5\n$EndElements\n";
-
-    #[test]
-    fn gmsh_reads_tets_and_orients_them() {
-        let m = parse_gmsh_v4("t.msh", GMSH).unwrap();
-        assert_eq!(m.nodes.len(), 5);
-        assert_eq!(m.tets.len(), 2);
-        let q = quality(&m);
-        assert_eq!(q.inverted, 0);
-        // Tet (0,2,1,3) was negative in the file and is flipped.
-        assert!((q.volume - (1.0 / 6.0 + 1.0 / 3.0)).abs() < 1e-15, "{q:?}");
-    }
-
-    #[test]
-    fn gmsh_errors_name_file_line_and_problem() {
-        let bad_tag = GMSH.replace("3 2 4 3 5", "3 2 4 3 9");
-        let e = parse_gmsh_v4("t.msh", &bad_tag).unwrap_err();
-        assert_eq!((e.file.as_str(), e.line), ("t.msh", 28), "{e}");
-        assert!(e.what.contains("node tag 9"), "{e}");
-        let bad_num = GMSH.replace("1 1 1\n$EndNodes", "1 x 1\n$EndNodes");
-        let e = parse_gmsh_v4("t.msh", &bad_num).unwrap_err();
-        assert_eq!(e.line, 20, "{e}");
-        assert!(e.what.contains("`x`"), "{e}");
-        let v2 = GMSH.replace("4.1 0 8", "2.2 0 8");
-        let e = parse_gmsh_v4("t.msh", &v2).unwrap_err();
-        assert!(e.line == 2 && e.what.contains("2.2"), "{e}");
-        let cut = &GMSH[..GMSH.find("$EndElements").unwrap() - 5];
-        let e = parse_gmsh_v4("t.msh", cut).unwrap_err();
-        assert!(e.what.contains("end of file"), "{e}");
-        let e = read_gmsh_v4("/nonexistent/x.msh").unwrap_err();
-        assert!(e.file.contains("x.msh") && e.what.contains("cannot read"), "{e}");
-    }
-
-    const MEDIT: &str = "MeshVersionFormatted 2\n# comment\nDimension 3\nVertices\n5\n0 0 0 1\n1 0 0 1\n0 1 0 1\n0 0 1 1\n1 1 1 1\n\
-Triangles\n1\n1 2 3 0\nTetrahedra\n2\n1 2 3 4 0\n2 4 3 5 0\nEnd\n";
-
-    #[test]
-    fn medit_reads_tets() {
-        let m = parse_medit("t.mesh", MEDIT).unwrap();
-        assert_eq!((m.nodes.len(), m.tets.len()), (5, 2));
-        assert_eq!(quality(&m).inverted, 0);
-    }
-
-    #[test]
-    fn medit_errors_name_file_line_and_problem() {
-        let e = parse_medit("t.mesh", &MEDIT.replace("2 4 3 5 0", "2 4 3 6 0")).unwrap_err();
-        assert_eq!(e.line, 17, "{e}");
-        assert!(e.what.contains("vertex 6"), "{e}");
-        let e = parse_medit("t.mesh", &MEDIT.replace("Dimension 3", "Dimension 2")).unwrap_err();
-        assert!(e.line == 3 && e.what.contains("Dimension"), "{e}");
-        let e = parse_medit("t.mesh", &MEDIT.replace("Triangles", "Pyramids")).unwrap_err();
-        assert!(e.line == 11 && e.what.contains("Pyramids"), "{e}");
-        let e = parse_medit(
-            "t.mesh",
-            "MeshVersionFormatted 2\nDimension 3\nVertices\n1\n0 0 0 1\nEnd\n",
-        )
-        .unwrap_err();
-        assert!(e.what.contains("no tetrahedra"), "{e}");
-    }
-
-    #[test]
-    fn truth_cube_loads_in_metres_and_names_missing_columns() {
-        let text = "Truth Cube,,\nAll positions in mm,,\ni,j,k,x0,y0,z0,x1,y1,z1,x2,y2,z2,x3,y3,z3\n\
-1,1,1,-29.69,-28.86,12.62,-30.33,-29.38,12.96,-31.04,-30.09,13.65,-31.85,-31.08,14.38\n";
-        let c = truth_cube::parse("c.csv", text).unwrap();
-        assert_eq!(c.beads.len(), 1);
-        assert_eq!(c.beads[0].index, [1, 1, 1]);
-        assert!((c.beads[0].positions[3].z - 0.01438).abs() < 1e-15);
-        let e = truth_cube::parse("c.csv", &text.replace(",y2,", ",yy,")).unwrap_err();
-        assert!(e.contains("c.csv:3") && e.contains("`y2`"), "{e}");
-        let e = truth_cube::parse("c.csv", &text.replace("-31.04", "abc")).unwrap_err();
-        assert!(e.contains("c.csv:4") && e.contains("`x2`"), "{e}");
-    }
-
-    #[test]
-    fn truth_cube_dataset_has_343_beads_compressed_along_z() {
-        let path = concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../datasets/phantom/truth-cube/truth-cube-uniaxial.csv"
-        );
-        let c = truth_cube::load(path).unwrap();
-        assert_eq!(c.beads.len(), 343);
-        // Bead z extent shrinks with each compression level (uniaxial along z).
-        let extent = |s: usize| {
-            let z = c.beads.iter().map(|b| b.positions[s].z);
-            z.clone().fold(f64::NEG_INFINITY, f64::max) - z.fold(f64::INFINITY, f64::min)
-        };
-        let e: Vec<f64> = (0..4).map(extent).collect();
-        assert!(
-            e.windows(2).all(|w| w[1] < w[0]) && e[0] > 0.055 && e[0] < 0.065,
-            "z extents (m) {e:?}"
         );
     }
 }

@@ -10,7 +10,7 @@
 //! set, not a distance: `|grad phi_t|` differs from 1 by at most `|du/dX|`
 //! (a few per cent for heart motion), which scales a penalty's stiffness, not
 //! where the wall is. A blood-flow field moves with the vessel
-//! ([`MovingFlow`]: the rest field carried along plus the wall's velocity).
+//! ([`crate::flow::MovingFlow`]: the rest field carried along plus the wall's velocity).
 //!
 //! Models that support it list [`crate::Capability::MovingVessel`]; they
 //! query [`crate::Environment::vessel_at`] at the time of each step and
@@ -29,7 +29,6 @@
 //! assert!((m.rest_point(&x, half_period) - Vec3::new(0.05, 0.0, 0.0)).norm() < 1e-15);
 //! ```
 
-use crate::scene::FlowField;
 use crate::sdf::Sdf;
 use crate::{Iso3, Mat3, Vec3};
 use std::f64::consts::PI;
@@ -286,31 +285,6 @@ impl Sdf for MovingSdf {
         };
         let g0 = self.rest.gradient(&xr);
         fi.transpose() * self.rest.hessian(&xr) * fi + self.motion.hessian_extra(&xr, self.t, &g0)
-    }
-}
-
-/// A flow field carried by a moving vessel at time `t`: the blood at `x` is
-/// the rest field at its rest point plus the wall's velocity there,
-/// `v(x) = v_0(X) + du/dt (X, t)` (the paper's blood elements follow the
-/// vessel by rigid virtual links; this is their continuum).
-#[derive(Debug, Clone)]
-pub struct MovingFlow {
-    rest: Arc<dyn FlowField>,
-    motion: Arc<dyn VesselMotion>,
-    t: f64,
-}
-
-impl MovingFlow {
-    /// `rest` carried by `motion` at time `t` (s).
-    pub fn new(rest: Arc<dyn FlowField>, motion: Arc<dyn VesselMotion>, t: f64) -> Self {
-        Self { rest, motion, t }
-    }
-}
-
-impl FlowField for MovingFlow {
-    fn velocity(&self, p: &Vec3) -> Vec3 {
-        let xr = self.motion.rest_point(p, self.t);
-        self.rest.velocity(&xr) + self.motion.velocity(&xr, self.t)
     }
 }
 

@@ -13,8 +13,12 @@
 //! scene.validate().unwrap();
 //! ```
 
-use crate::model::Capability;
-use crate::motion::{MovingFlow, MovingSdf, TransformedMotion, VesselMotion};
+use crate::capability::Capability;
+use crate::flow::{FlowField, MovingFlow, TransformedFlow};
+use crate::frames::axis_permutation;
+use crate::material::SolidMaterial;
+use crate::mesh::TetMesh;
+use crate::motion::{MovingSdf, TransformedMotion, VesselMotion};
 use crate::sdf::{Sdf, TransformedSdf};
 use crate::{Iso3, Vec3};
 use std::sync::Arc;
@@ -234,48 +238,6 @@ impl RodBody {
     }
 }
 
-/// Isotropic solid material (SI units).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SolidMaterial {
-    /// Young's modulus (Pa).
-    pub youngs_modulus: f64,
-    /// Poisson ratio (must be < 0.5).
-    pub poisson_ratio: f64,
-    /// Density (kg/m^3).
-    pub density: f64,
-}
-
-/// Linear tetrahedral mesh: node positions (m) and 4-node elements.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct TetMesh {
-    /// Node positions (m).
-    pub nodes: Vec<Vec3>,
-    /// Elements as node indices.
-    pub tets: Vec<[usize; 4]>,
-}
-
-impl TetMesh {
-    /// Check indices and that no element is degenerate.
-    pub fn validate(&self) -> Result<(), String> {
-        for (e, t) in self.tets.iter().enumerate() {
-            for &i in t {
-                if i >= self.nodes.len() {
-                    return Err(format!(
-                        "tet {e} refers to node {i} but the mesh has {} nodes",
-                        self.nodes.len()
-                    ));
-                }
-            }
-            let [a, b, c, d] = t.map(|i| self.nodes[i]);
-            let vol = (b - a).cross(&(c - a)).dot(&(d - a)) / 6.0;
-            if !(vol.abs() > 0.0) {
-                return Err(format!("tet {e} is degenerate (volume {vol})"));
-            }
-        }
-        Ok(())
-    }
-}
-
 /// A deformable solid (tissue, vessel wall, gel phantom).
 #[derive(Debug, Clone, PartialEq)]
 pub struct TissueBody {
@@ -391,39 +353,6 @@ impl Default for ContactParams {
             friction_dynamic: 0.0,
             margin: 0.0,
         }
-    }
-}
-
-/// A blood-flow velocity field (m/s).
-pub trait FlowField: Send + Sync + std::fmt::Debug {
-    /// Flow velocity at `p` (m/s).
-    fn velocity(&self, p: &Vec3) -> Vec3;
-}
-
-/// If `iso`'s rotation maps world axes onto world axes (a signed
-/// permutation), the source axis of each new axis; else `None`.
-pub fn axis_permutation(iso: &Iso3) -> Option<[usize; 3]> {
-    let r = iso.rotation.to_rotation_matrix();
-    let m = r.matrix();
-    let mut perm = [0usize; 3];
-    for i in 0..3 {
-        let j = (0..3).find(|&j| (m[(i, j)].abs() - 1.0).abs() < 1e-12)?;
-        perm[i] = j;
-    }
-    Some(perm)
-}
-
-/// A flow field moved rigidly: `v'(p) = R v(T^-1 p)`.
-#[derive(Debug, Clone)]
-pub struct TransformedFlow {
-    inner: Arc<dyn FlowField>,
-    iso: Iso3,
-}
-
-impl FlowField for TransformedFlow {
-    fn velocity(&self, p: &Vec3) -> Vec3 {
-        let q = self.iso.inverse_transform_point(&(*p).into()).coords;
-        self.iso.rotation * self.inner.velocity(&q)
     }
 }
 
@@ -764,10 +693,7 @@ impl Scene {
             s.environment.vessel = Some(Arc::new(TransformedSdf::new(v.clone(), *iso)));
         }
         if let Some(f) = &self.environment.flow {
-            s.environment.flow = Some(Arc::new(TransformedFlow {
-                inner: f.clone(),
-                iso: *iso,
-            }));
+            s.environment.flow = Some(Arc::new(TransformedFlow::new(f.clone(), *iso)));
         }
         if let Some(m) = &self.environment.vessel_motion {
             s.environment.vessel_motion = Some(Arc::new(TransformedMotion::new(m.clone(), *iso)));

@@ -4,8 +4,8 @@
 
 use std::path::PathBuf;
 use surgbench_core::Vec3;
+use surgbench_core::io::{TriSurface, load_mesh, parse_obj, parse_stl};
 use surgbench_core::sdf::CenterlineBuilder;
-use surgbench_core::vessel::{self, TriSurface, parse_obj, parse_stl};
 
 fn tube_mesh() -> TriSurface {
     CenterlineBuilder::new(Vec3::zeros(), Vec3::x())
@@ -31,7 +31,7 @@ fn round_trips_keep_topology_and_geometry() {
     // ASCII STL (written with {:e}: shortest round trip, so exact).
     let p = tmp("tube.stl");
     m.write_stl_ascii(&p).unwrap();
-    let a = vessel::load_mesh(&p, 1.0).unwrap();
+    let a = load_mesh(&p, 1.0).unwrap();
     assert_eq!(a.vertices.len(), m.vertices.len(), "welded vertex count");
     assert_eq!(a.triangles.len(), m.triangles.len());
     assert!(
@@ -42,7 +42,7 @@ fn round_trips_keep_topology_and_geometry() {
     // Binary STL (f32 coordinates: volume within f32 precision).
     let p = tmp("tube_bin.stl");
     std::fs::write(&p, m.to_stl_binary()).unwrap();
-    let b = vessel::load_mesh(&p, 1.0).unwrap();
+    let b = load_mesh(&p, 1.0).unwrap();
     assert_eq!(b.vertices.len(), m.vertices.len());
     assert!(
         ((b.signed_volume() - vol) / vol).abs() < 1e-6,
@@ -52,7 +52,7 @@ fn round_trips_keep_topology_and_geometry() {
     // OBJ, in millimetres, scaled back.
     let p = tmp("tube.obj");
     m.scaled(1e3).write_obj(&p).unwrap();
-    let o = vessel::load_mesh(&p, 1e-3).unwrap();
+    let o = load_mesh(&p, 1e-3).unwrap();
     assert_eq!(o.triangles, m.triangles);
     assert!(((o.signed_volume() - vol) / vol).abs() < 1e-12);
 }
@@ -107,12 +107,12 @@ fn malformed_files_name_file_location_and_problem() {
         e.to_string().contains("byte 80") && e.to_string().contains("facets"),
         "{e}"
     );
-    let e = vessel::load_mesh(&tmp("missing.stl"), 1.0).unwrap_err();
+    let e = load_mesh(&tmp("missing.stl"), 1.0).unwrap_err();
     assert!(e.to_string().contains("missing.stl"), "{e}");
     let p = tmp("x.ply");
     std::fs::write(&p, "ply").unwrap();
     assert!(
-        vessel::load_mesh(&p, 1.0)
+        load_mesh(&p, 1.0)
             .unwrap_err()
             .to_string()
             .contains("unknown mesh extension")
@@ -148,7 +148,7 @@ fn open_non_manifold_and_inside_out_meshes_are_rejected() {
     // Written to disk, the loader reports the file name too.
     let p = tmp("flipped.obj");
     flipped.write_obj(&p).unwrap();
-    let e = vessel::load_mesh(&p, 1.0).unwrap_err();
+    let e = load_mesh(&p, 1.0).unwrap_err();
     assert!(
         e.to_string().contains("flipped.obj") && e.to_string().contains("inside-out"),
         "{e}"

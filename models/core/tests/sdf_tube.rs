@@ -313,8 +313,8 @@ fn procedural_vessels_have_their_documented_sizes() {
 
 #[test]
 fn poiseuille_profile() {
-    use surgbench_core::scene::FlowField;
-    let f = vessel::PoiseuilleFlow {
+    use surgbench_core::flow::FlowField;
+    let f = surgbench_core::flow::PoiseuilleFlow {
         origin: Vec3::zeros(),
         axis: Vec3::x(),
         radius: 2e-3,

@@ -5,8 +5,8 @@
 
 use std::f64::consts::PI;
 use surgbench_core::Vec3;
+use surgbench_core::io::TriSurface;
 use surgbench_core::sdf::{CenterlineBuilder, MeshSdf, Sdf, SweptTube, VoxelSdf};
-use surgbench_core::vessel::TriSurface;
 
 struct Rng(u64);
 impl Rng {

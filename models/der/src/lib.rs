@@ -26,9 +26,11 @@
 //! ```
 
 pub mod energy;
+mod factory;
 mod model;
 pub mod rod;
 
-pub use model::{DerFactory, DerModel};
+pub use factory::DerFactory;
+pub use model::DerModel;
 pub use rod::{DerParams, DerRod, Integrator, TwistDynamics};
 pub use surgbench_core::band;

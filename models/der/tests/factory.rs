@@ -26,7 +26,7 @@ fn check_rejects_what_der_cannot_model() {
     assert!(f.check(&Scene::empty("none")).is_err());
     #[derive(Debug)]
     struct Still;
-    impl surgbench_core::scene::FlowField for Still {
+    impl surgbench_core::flow::FlowField for Still {
         fn velocity(&self, _: &Vec3) -> Vec3 {
             Vec3::zeros()
         }

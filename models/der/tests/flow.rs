@@ -5,10 +5,10 @@
 
 use std::f64::consts::PI;
 use std::sync::Arc;
-use surgbench_core::scene::FlowField;
+use surgbench_core::flow::FlowField;
+use surgbench_core::flow::{BLOOD_DENSITY, DRAG_NORMAL, DRAG_TANGENTIAL};
 use surgbench_core::{DeviceCommand, RodBody, Vec3};
 use surgbench_der::DerRod;
-use surgbench_der::rod::{BLOOD_DENSITY, DRAG_NORMAL, DRAG_TANGENTIAL};
 
 /// Uniform flow `w` (m/s).
 #[derive(Debug)]

@@ -2,44 +2,16 @@
 //! sphere (`surgbench_core::scene::SphereIndenter`), by a node-to-sphere
 //! penalty.
 //!
-//! With the gap `g_i = |x_i - c| - R` of boundary node `i` (negative inside
-//! the sphere of centre `c` and radius `R`) the contact energy is
-//!
-//! `E_c = sum_i k_i / 2 <g_i>_-^2`, `<g>_- = min(g, 0)`,
-//!
-//! (the penalty regularisation of the Signorini condition `g >= 0, p >= 0,
-//! p g = 0`; Wriggers, *Computational Contact Mechanics*, 2nd ed. 2006,
-//! Sec. 6.3, eq. 6.47). With `d = |x - c|` and `n = (x - c)/d` the outward
-//! normal of the sphere, a penetrating node (`g < 0`) gets the force
-//! `f_i = -dE_c/dx_i = -k_i g_i n` (along `+n`, out of the sphere) and the
-//! Hessian block
-//!
-//! `d^2E_c/dx_i^2 = k_i (n n^T + (g_i / d) (I - n n^T))`,
-//!
-//! whose tangential part is negative (`g < 0`) but `|g| / d` times smaller
-//! than the normal one; [`SphereContact::hessian_block`] can drop it
-//! (`project`) where a positive semi-definite block is needed. `E_c` is C^1:
-//! the Hessian jumps where a node touches the surface (`g = 0`).
-//!
-//! **Penalty rule.** Node `i` gets `k_i = kappa E* sqrt(A_i)` (N/m), with
-//! `E* = E / (1 - nu^2)` the plane-strain modulus and `A_i` the node's share
-//! of the rest boundary area (a third of each boundary triangle it belongs
-//! to). `2 E* a` is the stiffness of a rigid flat punch of radius `a` on a
-//! half-space (Johnson, *Contact Mechanics*, 1985, eq. 3.36 with
-//! `F = 2 a E* delta`), so `E* sqrt(A_i)` is the order of the stiffness of
-//! the tissue under one node's patch, and `kappa` (default
-//! [`DEFAULT_KAPPA`]) says how much stiffer the penalty spring is. A node
-//! carrying the contact pressure `p` over its area then penetrates by
-//! `|g| = p A_i / k_i = p sqrt(A_i) / (kappa E*)`: the penetration over the
-//! local mesh size is `p / (kappa E*)`, the contact strain over `kappa`.
+//! The law (gap, penalty rule `k_i = kappa E* sqrt(A_i)`, energy, Hessian)
+//! and its citations are in [`surgbench_core::sphere_contact`]; this module
+//! applies it to a [`TetMesh`]'s boundary faces and assembles it into the
+//! block CSR stiffness. [`SphereContact::hessian_block`] can drop the
+//! negative tangential term (`project`) where a positive semi-definite block
+//! is needed.
 
 use crate::material::M3;
+use surgbench_core::sphere_contact::{self, node_stiffness, penetration};
 use surgbench_core::{SolidMaterial, TetMesh, Vec3, mesh};
-
-/// Default penalty factor `kappa` of the rule `k_i = kappa E* sqrt(A_i)`:
-/// the penetration it leaves is `p / (100 E*)` of the local mesh size (the
-/// contact strain over 100, below 1e-3 for strains under 10 %).
-pub const DEFAULT_KAPPA: f64 = 100.0;
 
 /// The penalty contact of one body with one rigid sphere.
 #[derive(Debug, Clone, PartialEq)]
@@ -59,18 +31,7 @@ impl SphereContact {
     /// `material`, with penalty factor `kappa` (> 0); sphere at `centre`
     /// with `radius`.
     pub fn new(mesh: &TetMesh, material: &SolidMaterial, kappa: f64, centre: Vec3, radius: f64) -> Self {
-        let n = mesh.nodes.len();
-        let mut area = vec![0.0; n];
-        for f in mesh::boundary_faces(mesh) {
-            let [a, b, c] = f.map(|i| mesh.nodes[i]);
-            let third = (b - a).cross(&(c - a)).norm() / 6.0;
-            for i in f {
-                area[i] += third;
-            }
-        }
-        let e_star = material.youngs_modulus / (1.0 - material.poisson_ratio * material.poisson_ratio);
-        let nodes: Vec<usize> = (0..n).filter(|&i| area[i] > 0.0).collect();
-        let stiffness = nodes.iter().map(|&i| kappa * e_star * area[i].sqrt()).collect();
+        let (nodes, stiffness) = node_stiffness(&mesh.nodes, &mesh::boundary_faces(mesh), material, kappa);
         Self {
             nodes,
             stiffness,
@@ -84,10 +45,7 @@ impl SphereContact {
     /// (it would need a penetration of a whole radius).
     fn active(&self, j: usize, x: &[Vec3]) -> Option<(usize, f64, f64, f64, Vec3)> {
         let i = self.nodes[j];
-        let r = x[i] - self.centre;
-        let d = r.norm();
-        let g = d - self.radius;
-        (g < 0.0 && d > 0.0).then(|| (i, self.stiffness[j], g, d, r / d))
+        penetration(&x[i], &self.centre, self.radius).map(|(g, d, n)| (i, self.stiffness[j], g, d, n))
     }
 
     /// Contact energy `E_c` (J) at positions `x` (m).
@@ -122,11 +80,10 @@ impl SphereContact {
 
     /// `k (n n^T + (g / d)(I - n n^T))`, without the second term when `project`.
     pub fn hessian_block(k: f64, g: f64, d: f64, n: &Vec3, project: bool) -> M3 {
-        let nn = n * n.transpose();
         if project {
-            nn * k
+            n * n.transpose() * k
         } else {
-            (nn + (M3::identity() - nn) * (g / d)) * k
+            sphere_contact::hessian_block(k, g, d, n)
         }
     }
 
@@ -171,6 +128,7 @@ impl SphereContact {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use surgbench_core::sphere_contact::DEFAULT_KAPPA;
 
     /// Gradient and Hessian against central differences of the energy and of
     /// the forces, at nodes penetrating by 0.1-30 % of the radius. Central

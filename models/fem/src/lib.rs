@@ -29,14 +29,16 @@ pub mod contact;
 pub mod core;
 pub mod dynamics;
 pub mod element;
+pub mod factory;
 pub mod material;
 pub mod statics;
 pub mod supernodal;
 
 pub use assembly::{LinearSolver, Ordering};
 pub use contact::SphereContact;
-pub use dynamics::{DynParams, FemFactory, FemModel, Integrator, REUSE_TOL};
+pub use dynamics::{DynParams, FemModel, Integrator, REUSE_TOL};
 pub use element::Jacobian;
+pub use factory::FemFactory;
 pub use material::{Law, Material};
 pub use statics::{Constraint, Loads, StaticInfo, StaticParams, pressure_loads, solve_static};
 

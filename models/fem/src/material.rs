@@ -24,6 +24,7 @@
 //! `mu = E / (2 (1 + nu))`, `lambda = E nu / ((1 + nu)(1 - 2 nu))`.
 
 use nalgebra::Matrix3;
+pub use surgbench_core::material::lame;
 
 /// 3x3 matrix of `f64`.
 pub type M3 = Matrix3<f64>;
@@ -59,12 +60,6 @@ impl Law {
             _ => None,
         }
     }
-}
-
-/// Lamé parameters `(mu, lambda)` (Pa) from `E` (Pa) and `nu`.
-pub fn lame(youngs_modulus: f64, poisson_ratio: f64) -> (f64, f64) {
-    let (e, nu) = (youngs_modulus, poisson_ratio);
-    (e / (2.0 * (1.0 + nu)), e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)))
 }
 
 /// Rotation-variant SVD polar decomposition (Irving et al. 2004, Sec. 4):

@@ -2,45 +2,15 @@
 //! sphere (`surgbench_core::scene::SphereIndenter`), by a node-to-sphere
 //! penalty added to the Newton objective of the implicit integrators.
 //!
-//! With the gap `g_i = |x_i - c| - R` of surface node `i` (negative inside
-//! the sphere of centre `c` and radius `R`) the contact energy is
-//!
-//! `E_c = sum_i k_i / 2 <g_i>_-^2`, `<g>_- = min(g, 0)`,
-//!
-//! the penalty regularisation of the Signorini conditions `g >= 0, p >= 0,
-//! p g = 0` (Wriggers, *Computational Contact Mechanics*, 2nd ed. 2006,
-//! Sec. 6.3, eq. 6.47). With `d = |x - c|` and `n = (x - c) / d` the
-//! sphere's outward normal, a penetrating node (`g < 0`) has
-//!
-//! `dE_c/dx_i = k_i g_i n` (the force `-k_i g_i n` pushes it out along `+n`),
-//! `d^2E_c/dx_i^2 = k_i (n n^T + (g_i / d)(I - n n^T))`.
-//!
-//! The tangential term is negative but `|g| / d` times the normal one; the
+//! The law (gap, penalty rule `k_i = kappa E* sqrt(A_i)`, energy, Hessian)
+//! and its citations are in [`surgbench_core::sphere_contact`], the same as
+//! the `fem` model's, so the two differ only in their elasticity. The
 //! Newton-CG of [`crate::model`] uses the exact Hessian (its Steihaug guard
-//! handles negative curvature). `E_c` is C^1: the Hessian jumps where a
-//! node touches the surface.
-//!
-//! **Penalty rule** (the same as the `fem` model's, so the two differ only
-//! in their elasticity): node `i` gets `k_i = kappa E* sqrt(A_i)` (N/m),
-//! `E* = E / (1 - nu^2)` the plane-strain modulus and `A_i` the node's share
-//! of the rest boundary area (a third of each boundary triangle it belongs
-//! to). `2 E* a` is the stiffness of a rigid flat punch of radius `a` on a
-//! half-space (Johnson, *Contact Mechanics*, 1985, eq. 3.36, `F = 2 a E*
-//! delta`), so `E* sqrt(A_i)` is the order of the tissue's stiffness under
-//! one node's patch and `kappa` (fidelity `contact_stiffness`, default
-//! [`DEFAULT_KAPPA`]) says how much stiffer the penalty spring is. A node
-//! carrying the contact pressure `p` penetrates by `|g| = p A_i / k_i =
-//! p sqrt(A_i) / (kappa E*)`: over the local node spacing, the contact
-//! strain `p / E*` divided by `kappa`.
-//!
-//! Units are SI (m, N, J).
+//! handles the negative tangential curvature).
 
 use surgbench_core::scene::SphereIndenter;
+use surgbench_core::sphere_contact::{self, node_stiffness, penetration};
 use surgbench_core::{Mat3, SolidMaterial, Vec3};
-
-/// Default penalty factor `kappa` of `k_i = kappa E* sqrt(A_i)`: the
-/// penetration is the contact strain over 100 of the node spacing.
-pub const DEFAULT_KAPPA: f64 = 100.0;
 
 /// The penalty contact of one body with one rigid sphere moving along its
 /// path.
@@ -67,17 +37,7 @@ impl SphereContact {
         kappa: f64,
         path: SphereIndenter,
     ) -> Self {
-        let mut area = vec![0.0; rest.len()];
-        for f in faces {
-            let [a, b, c] = f.map(|i| rest[i]);
-            let third = (b - a).cross(&(c - a)).norm() / 6.0;
-            for &i in f {
-                area[i] += third;
-            }
-        }
-        let e_star = material.youngs_modulus / (1.0 - material.poisson_ratio * material.poisson_ratio);
-        let nodes: Vec<usize> = (0..rest.len()).filter(|&i| area[i] > 0.0).collect();
-        let stiffness = nodes.iter().map(|&i| kappa * e_star * area[i].sqrt()).collect();
+        let (nodes, stiffness) = node_stiffness(rest, faces, material, kappa);
         Self {
             nodes,
             stiffness,
@@ -96,10 +56,7 @@ impl SphereContact {
     #[inline]
     fn active(&self, j: usize, x: &[Vec3]) -> Option<(usize, f64, f64, f64, Vec3)> {
         let i = self.nodes[j];
-        let r = x[i] - self.centre;
-        let d = r.norm();
-        let g = d - self.path.radius;
-        (g < 0.0 && d > 0.0).then(|| (i, self.stiffness[j], g, d, r / d))
+        penetration(&x[i], &self.centre, self.path.radius).map(|(g, d, n)| (i, self.stiffness[j], g, d, n))
     }
 
     fn each_active(&self, x: &[Vec3]) -> impl Iterator<Item = (usize, f64, f64, f64, Vec3)> {
@@ -127,8 +84,7 @@ impl SphereContact {
 
     /// `k (n n^T + (g / d)(I - n n^T))` (N/m).
     pub fn hessian_block(k: f64, g: f64, d: f64, n: &Vec3) -> Mat3 {
-        let nn = n * n.transpose();
-        (nn + (Mat3::identity() - nn) * (g / d)) * k
+        sphere_contact::hessian_block(k, g, d, n)
     }
 
     /// Force the body exerts on the sphere (N): minus the sum of the contact
@@ -152,6 +108,7 @@ impl SphereContact {
 mod tests {
     use super::*;
     use surgbench_core::mesh;
+    use surgbench_core::sphere_contact::DEFAULT_KAPPA;
 
     fn material() -> SolidMaterial {
         SolidMaterial {

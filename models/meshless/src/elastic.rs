@@ -44,6 +44,7 @@
 //!
 //! Units: positions m, volumes m^3, energies J, forces N.
 
+use surgbench_core::material::lame;
 use surgbench_core::{Mat3, Vec3};
 
 use crate::kdtree::KdTree;
@@ -81,13 +82,6 @@ impl std::fmt::Display for DiscretizationError {
             ),
         }
     }
-}
-
-/// Lamé parameters `(mu, lambda)` (Pa) from Young's modulus (Pa) and Poisson ratio.
-pub fn lame(youngs_modulus: f64, poisson_ratio: f64) -> (f64, f64) {
-    let mu = youngs_modulus / (2.0 * (1.0 + poisson_ratio));
-    let lam = youngs_modulus * poisson_ratio / ((1.0 + poisson_ratio) * (1.0 - 2.0 * poisson_ratio));
-    (mu, lam)
 }
 
 /// Conditioning `lambda_min / lambda_max` of node `i`'s moment matrix
@@ -138,6 +132,24 @@ pub struct PointElastic {
     a: Vec<f64>,
 }
 
+/// One support radius per node of `rest`, each positive and finite (m).
+fn check_radii(rest: &[Vec3], radius: &[f64]) -> Result<(), DiscretizationError> {
+    if radius.len() != rest.len() {
+        return Err(DiscretizationError::BadRadius(format!(
+            "{} support radii for {} nodes",
+            radius.len(),
+            rest.len()
+        )));
+    }
+    if let Some(i) = radius.iter().position(|h| !(*h > 0.0 && h.is_finite())) {
+        return Err(DiscretizationError::BadRadius(format!(
+            "node {i} has support radius {} m: must be > 0 and finite",
+            radius[i]
+        )));
+    }
+    Ok(())
+}
+
 impl PointElastic {
     /// Build neighbourhoods (node `i` sees the nodes closer than
     /// `radius[i]` m, found with a [`KdTree`]), poly6 weights
@@ -153,19 +165,7 @@ impl PointElastic {
         poisson_ratio: f64,
         k_hg: f64,
     ) -> Result<Self, DiscretizationError> {
-        if radius.len() != rest.len() {
-            return Err(DiscretizationError::BadRadius(format!(
-                "{} support radii for {} nodes",
-                radius.len(),
-                rest.len()
-            )));
-        }
-        if let Some(i) = radius.iter().position(|h| !(*h > 0.0 && h.is_finite())) {
-            return Err(DiscretizationError::BadRadius(format!(
-                "node {i} has support radius {} m: must be > 0 and finite",
-                radius[i]
-            )));
-        }
+        check_radii(rest, radius)?;
         let tree = KdTree::new(rest);
         let (mu, lambda) = lame(youngs_modulus, poisson_ratio);
         let n = rest.len();

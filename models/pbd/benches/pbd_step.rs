@@ -11,11 +11,12 @@ use std::hint::black_box;
 use std::sync::Arc;
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use surgbench_core::mesh;
 use surgbench_core::sdf::StraightTube;
 use surgbench_core::{
     Body, DeviceCommand, Fidelity, Model, ModelFactory, RodBody, Scene, SolidMaterial, TissueBody, Vec3,
 };
-use surgbench_pbd::{PbdRodFactory, PbdTissueFactory, block_tet_mesh};
+use surgbench_pbd::{PbdRodFactory, PbdTissueFactory};
 
 fn rod_model(iterations: usize, substeps: usize, solver: usize) -> Box<dyn Model> {
     let mut scene = Scene::empty("rod-in-tube");
@@ -64,7 +65,7 @@ fn tissue_model(hash_box: f64, threads: usize) -> Box<dyn Model> {
     let h = 5e-3;
     let cells = [8, 8, 50];
     let size = Vec3::new(8.0, 8.0, 50.0) * h;
-    let mesh = block_tet_mesh(cells, size);
+    let mesh = mesh::block(size, cells);
     let fixed_nodes = (0..mesh.nodes.len()).filter(|&i| mesh.nodes[i].x == 0.0).collect();
     let driven_nodes = (0..mesh.nodes.len())
         .filter(|&i| {

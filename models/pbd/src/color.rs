@@ -189,11 +189,11 @@ pub fn partition(nn: usize, edges: &[[u32; 2]], tets: &[[u32; 4]]) -> Partition 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::block_tet_mesh;
     use surgbench_core::Vec3;
+    use surgbench_core::mesh;
 
     fn mesh_constraints(cells: [usize; 3]) -> (usize, Vec<[u32; 2]>, Vec<[u32; 4]>) {
-        let m = block_tet_mesh(cells, Vec3::new(1.0, 1.0, 1.0));
+        let m = mesh::block(Vec3::new(1.0, 1.0, 1.0), cells);
         let tets: Vec<[u32; 4]> = m.tets.iter().map(|t| t.map(|i| i as u32)).collect();
         let mut edges: Vec<[u32; 2]> = tets
             .iter()

@@ -35,7 +35,6 @@
 pub mod color;
 pub mod ghost;
 pub mod hash;
-pub mod mesh;
 pub mod rod;
 #[cfg(test)]
 pub(crate) mod testrng;
@@ -43,11 +42,10 @@ pub mod tissue;
 
 pub use ghost::{GhostSurface, SurfaceHit, project_particle_triangle};
 pub use hash::BoxHash;
-pub use mesh::block_tet_mesh;
 pub use rod::{PbdRod, PbdRodFactory, RodSettings, RodSolver};
 pub use tissue::{
     ContactParticle, ParticleContact, PbdTissue, PbdTissueFactory, StaticInfo, StaticParams, TissueSettings,
-    project_volume, tet_volume, tet_volume_gradients,
+    project_volume,
 };
 
 /// Range checks of the solver knobs both PBD models share: `dt` (s),

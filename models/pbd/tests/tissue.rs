@@ -1,12 +1,11 @@
 //! Physics tests of the tetrahedral XPBD tissue (`pbd-tissue`).
 
+use surgbench_core::mesh::{tet_volume_gradients, tet_volume_of as tet_volume};
 use surgbench_core::{
     Body, BuildError, DeviceCommand, Fidelity, Iso3, Model, ModelFactory, Observation, Scene, SolidMaterial,
     TissueBody, Vec3,
 };
-use surgbench_pbd::{
-    PbdTissue, PbdTissueFactory, StaticParams, block_tet_mesh, project_volume, tet_volume, tet_volume_gradients,
-};
+use surgbench_pbd::{PbdTissue, PbdTissueFactory, StaticParams, project_volume};
 
 mod common;
 use common::Rng;
@@ -33,7 +32,7 @@ fn block_scene(
     disp: Vec3,
 ) -> Scene {
     let size = Vec3::new(cells[0] as f64, cells[1] as f64, cells[2] as f64) * h;
-    let mesh = block_tet_mesh(cells, size);
+    let mesh = surgbench_core::mesh::block(size, cells);
     let fixed_nodes = (0..mesh.nodes.len()).filter(|&i| fixed(&mesh.nodes[i])).collect();
     let driven_nodes = (0..mesh.nodes.len())
         .filter(|&i| driven(&mesh.nodes[i]))

@@ -7,7 +7,7 @@ use surgbench_core::scene::SphereIndenter;
 use surgbench_core::{
     Body, BuildError, DeviceCommand, Fidelity, Model, ModelFactory, Scene, SolidMaterial, TissueBody, Vec3,
 };
-use surgbench_pbd::{PbdTissue, PbdTissueFactory, StaticParams, block_tet_mesh};
+use surgbench_pbd::{PbdTissue, PbdTissueFactory, StaticParams};
 
 const H: f64 = 0.01;
 
@@ -25,7 +25,7 @@ fn fid(iters: usize, dt: f64, damping: f64, threads: usize) -> Fidelity {
 /// An `n^3`-cell cube of edge `n H`, `nu = 0.3`, nothing held, no gravity.
 fn cube(n: usize) -> Scene {
     let s = n as f64 * H;
-    let mesh = block_tet_mesh([n, n, n], Vec3::repeat(s));
+    let mesh = surgbench_core::mesh::block(Vec3::repeat(s), [n, n, n]);
     let mut scene = Scene::empty("pbd-contact");
     let mut body = TissueBody::new(
         mesh,

@@ -8,7 +8,7 @@ use crate::scenario::{
     Declared, Inputs, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
 };
 use surgbench_core::Mat3;
-use surgbench_core::mesh::truth_cube as phantom;
+use surgbench_core::io::truth_cube as phantom;
 use surgbench_core::{Family, Observation, TetMesh, TissueBody, Vec3};
 
 /// Edge of the Truth Cube (m), Kerdok et al. 2003.

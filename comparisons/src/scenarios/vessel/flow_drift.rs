@@ -9,8 +9,8 @@ use crate::scenario::{
 };
 use std::sync::Arc;
 use surgbench_core::Settle;
+use surgbench_core::flow::{BLOOD_DENSITY, PoiseuilleFlow};
 use surgbench_core::sdf::StraightTube;
-use surgbench_core::vessel::PoiseuilleFlow;
 use surgbench_core::{Family, Scene};
 
 params! {
@@ -150,7 +150,7 @@ fn build(p: &FlowParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
     scene.environment.contact = contact(p.friction_static, p.friction_dynamic, r)?;
     scene.validate().map_err(UsageError)?;
     // Dynamic pressure times the wire's projected area, over the length.
-    let drag = 0.5 * 1060.0 * v * v * 2.0 * r * l;
+    let drag = 0.5 * BLOOD_DENSITY * v * v * 2.0 * r * l;
     let energy = (drag * l).max(e * PI * r.powi(4) / 4.0 / l);
     let run = FlowRun {
         tube,

@@ -19,7 +19,8 @@
 
 use surgbench_core::{Unsupported, Vec3};
 
-use super::{PbdTissue, tet_volume, tet_volume_gradients};
+use super::PbdTissue;
+use surgbench_core::mesh::{tet_volume_gradients, tet_volume_of as tet_volume};
 
 /// Knobs of [`PbdTissue::static_equilibrium`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -259,17 +260,9 @@ impl PbdTissue {
         (d, max_it)
     }
 
-    /// Static equilibrium of this model's energy with the fixed and driven
-    /// nodes where they are now (the whole mesh, whatever the local
-    /// activation box), started from the current state. Its hand force is
-    /// what the model reports once XPBD has converged and the tissue has
-    /// settled: the gap to the reference is the model's own discretisation
-    /// and material-mapping error; the gap to [`Self`]'s observed hand force
-    /// is iteration (and settling) error.
-    ///
-    /// Hard volume constraints (`nu = 1/2`, zero compliance) have no energy
-    /// to minimise: [`Unsupported`].
-    pub fn static_equilibrium(&self, params: &StaticParams) -> Result<StaticInfo, Unsupported> {
+    /// The statics solver minimises an energy: hard volume constraints and
+    /// the hard sphere contact have none.
+    fn check_static(&self) -> Result<(), Unsupported> {
         if self.tet_alpha.contains(&0.0) {
             return Err(Unsupported::new(
                 "static equilibrium: hard volume constraints (nu = 1/2) have no energy to minimise",
@@ -281,6 +274,48 @@ impl PbdTissue {
                 sp.path.radius
             )));
         }
+        Ok(())
+    }
+
+    /// Backtracking along `d` from `x` (energy `u`, directional derivative
+    /// `slope`, free-gradient norm `r`): the first of 40 halvings that
+    /// decreases the energy enough (Armijo, `1e-4`) or, once energy
+    /// differences are at roundoff level, halves the free gradient. The
+    /// accepted positions with their energy and gradient, `None` if none is.
+    fn backtrack(
+        &self,
+        x: &[Vec3],
+        d: &[Vec3],
+        u: f64,
+        slope: f64,
+        r: f64,
+        free_norm: &dyn Fn(&[Vec3]) -> f64,
+    ) -> Option<(Vec<Vec3>, f64, Vec<Vec3>)> {
+        let mut step = 1.0;
+        for _ in 0..40 {
+            let xt: Vec<Vec3> = x.iter().zip(d).map(|(p, q)| p + q * step).collect();
+            let ut = self.static_energy(&xt);
+            let gt = self.static_gradient(&xt);
+            if ut <= u + 1e-4 * step * slope || free_norm(&gt) < 0.5 * r {
+                return Some((xt, ut, gt));
+            }
+            step *= 0.5;
+        }
+        None
+    }
+
+    /// Static equilibrium of this model's energy with the fixed and driven
+    /// nodes where they are now (the whole mesh, whatever the local
+    /// activation box), started from the current state. Its hand force is
+    /// what the model reports once XPBD has converged and the tissue has
+    /// settled: the gap to the reference is the model's own discretisation
+    /// and material-mapping error; the gap to [`Self`]'s observed hand force
+    /// is iteration (and settling) error.
+    ///
+    /// Hard volume constraints (`nu = 1/2`, zero compliance) have no energy
+    /// to minimise: [`Unsupported`].
+    pub fn static_equilibrium(&self, params: &StaticParams) -> Result<StaticInfo, Unsupported> {
+        self.check_static()?;
         let mut x = self.x.clone();
         let mask = self.static_masks();
         let free_norm = |g: &[Vec3]| -> f64 {
@@ -322,25 +357,13 @@ impl PbdTissue {
             let (d, k) = self.solve_gn(&lin, &g, eta * r, params.max_cg);
             cg += k;
             let slope: f64 = g.iter().zip(&d).map(|(a, b)| a.dot(b)).sum();
-            // Backtracking on the energy (Armijo), or on the free gradient
-            // once energy differences are at roundoff level.
-            let mut step = 1.0;
-            let mut accepted = false;
-            for _ in 0..40 {
-                let xt: Vec<Vec3> = x.iter().zip(&d).map(|(p, q)| p + q * step).collect();
-                let ut = self.static_energy(&xt);
-                let gt = self.static_gradient(&xt);
-                if ut <= u + 1e-4 * step * slope || free_norm(&gt) < 0.5 * r {
+            match self.backtrack(&x, &d, u, slope, r, &free_norm) {
+                Some((xt, ut, gt)) => {
                     x = xt;
                     u = ut;
                     g = gt;
-                    accepted = true;
-                    break;
                 }
-                step *= 0.5;
-            }
-            if !accepted {
-                break;
+                None => break,
             }
         }
         let hand_force = (0..x.len())

@@ -26,12 +26,15 @@ use crate::supernodal::SplitSolve;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{
-    CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
+    CholeskySymbolicParams, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
-use faer::{Conj, MatMut, Par, Side};
+use faer::{Par, Side};
 use rayon::prelude::*;
 use surgbench_core::Vec3;
+
+mod ordering;
+mod solve;
 
 /// Sparsity pattern of the node graph and the fixed-slot reduction maps.
 #[derive(Debug, Clone)]
@@ -167,127 +170,6 @@ impl Pattern {
             }
             *o = s;
         });
-    }
-
-    /// Reverse Cuthill-McKee ordering of the node graph (Cuthill and McKee
-    /// 1969; George 1971): breadth-first from a pseudo-peripheral node,
-    /// neighbours by increasing degree, then reversed. Returns the nodes in
-    /// the new order (`order[k]` = old node index).
-    pub fn rcm(&self) -> Vec<usize> {
-        let n = self.n;
-        let deg = |i: usize| self.row_ptr[i + 1] - self.row_ptr[i];
-        let mut visited = vec![false; n];
-        let mut order = Vec::with_capacity(n);
-        let bfs = |start: usize, visited: &mut Vec<bool>, order: &mut Vec<usize>| -> usize {
-            let first = order.len();
-            visited[start] = true;
-            order.push(start);
-            let mut head = first;
-            let mut last = start;
-            while head < order.len() {
-                let v = order[head];
-                head += 1;
-                last = v;
-                let mut nb: Vec<usize> = self.col[self.row_ptr[v]..self.row_ptr[v + 1]]
-                    .iter()
-                    .copied()
-                    .filter(|&u| !visited[u])
-                    .collect();
-                nb.sort_by_key(|&u| (deg(u), u));
-                for u in nb {
-                    visited[u] = true;
-                    order.push(u);
-                }
-            }
-            last
-        };
-        for s in 0..n {
-            if visited[s] {
-                continue;
-            }
-            // Pseudo-peripheral start: the last node reached by a BFS.
-            let mut tmp_vis = visited.clone();
-            let mut tmp = Vec::new();
-            let far = bfs(s, &mut tmp_vis, &mut tmp);
-            bfs(far, &mut visited, &mut order);
-        }
-        order.reverse();
-        order
-    }
-
-    /// Nested-dissection ordering of the node graph (George 1973, "Nested
-    /// dissection of a regular finite element mesh", SIAM J. Numer. Anal.
-    /// 10(2)), with geometric bisection: a node set is split at the median
-    /// coordinate along its longest bounding-box extent into a low side
-    /// (coordinate below the median) and a high side; the separator is the
-    /// nodes of the larger side adjacent to the other side. Both remaining
-    /// parts are ordered recursively, the separator after them, so no
-    /// factor fill couples the two parts. Sets of at most [`ND_LEAF`] nodes
-    /// keep their index order. Returns the nodes in the new order
-    /// (`order[k]` = old node index); deterministic (ties broken by index).
-    pub fn nested_dissection(&self) -> Vec<usize> {
-        let mut order = Vec::with_capacity(self.n);
-        // Side of every node during a split: 0 outside, 1 low, 2 high.
-        let mut side = vec![0u8; self.n];
-        let mut stack: Vec<(Vec<usize>, Option<Vec<usize>>)> = vec![((0..self.n).collect(), None)];
-        // Depth-first with explicit stack: an entry `(set, Some(sep))` means
-        // "set already split; emit sep" after its parts.
-        while let Some((set, sep)) = stack.pop() {
-            if let Some(sep) = sep {
-                order.extend(sep);
-                continue;
-            }
-            if set.len() <= ND_LEAF {
-                order.extend(set);
-                continue;
-            }
-            let (lo, hi) = set.iter().fold(
-                (Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY)),
-                |(lo, hi), &i| (lo.inf(&self.coords[i]), hi.sup(&self.coords[i])),
-            );
-            let ext = hi - lo;
-            let axis = ext.imax();
-            let mut vals: Vec<f64> = set.iter().map(|&i| self.coords[i][axis]).collect();
-            vals.sort_by(f64::total_cmp);
-            let median = vals[vals.len() / 2];
-            let (mut low, mut high): (Vec<usize>, Vec<usize>) =
-                set.iter().partition(|&&i| self.coords[i][axis] < median);
-            if low.is_empty() {
-                // Degenerate extent (all at the median): split by position.
-                let h = set.len() / 2;
-                low = set[..h].to_vec();
-                high = set[h..].to_vec();
-            }
-            for &i in &low {
-                side[i] = 1;
-            }
-            for &i in &high {
-                side[i] = 2;
-            }
-            let (big, other) = if high.len() >= low.len() { (2u8, 1u8) } else { (1, 2) };
-            let touches = |i: usize| {
-                self.col[self.row_ptr[i]..self.row_ptr[i + 1]]
-                    .iter()
-                    .any(|&j| side[j] == other)
-            };
-            let (mut part_a, mut part_b, mut sep) = (Vec::new(), Vec::new(), Vec::new());
-            for &i in &set {
-                if side[i] == big && touches(i) {
-                    sep.push(i);
-                } else if side[i] == 1 {
-                    part_a.push(i);
-                } else {
-                    part_b.push(i);
-                }
-            }
-            for &i in &set {
-                side[i] = 0;
-            }
-            stack.push((Vec::new(), Some(sep)));
-            stack.push((part_b, None));
-            stack.push((part_a, None));
-        }
-        order
     }
 }
 
@@ -609,139 +491,6 @@ impl System {
         c.set_single(self.single);
         self.factorizations += 1;
         Ok(())
-    }
-
-    /// Solve `A x = b` on the free DOFs with the cached factorization;
-    /// `b` (full DOF vector, constrained entries ignored) is overwritten by `x`
-    /// (constrained entries set to zero).
-    pub fn solve_cholesky(&mut self, b: &mut [f64]) {
-        let c = self.chol.as_mut().expect("factorize first");
-        let mut z = std::mem::take(&mut self.work.z);
-        z.clear();
-        z.resize(b.len(), 0.0);
-        c.solve_full(&self.dofs, b, &mut z);
-        b.copy_from_slice(&z);
-        self.work.z = z;
-    }
-
-    /// Block-Jacobi PCG on `A = c_k K + c_m M` (block CSR `k`) restricted to
-    /// the free DOFs. `x` holds the initial guess (warm start) and receives
-    /// the solution. Returns `(iterations, relative residual)`.
-    #[allow(clippy::too_many_arguments)]
-    pub fn solve_cg(
-        &mut self,
-        pat: &Pattern,
-        k: &[M3],
-        c_k: f64,
-        mass: &[f64],
-        c_m: f64,
-        b: &[f64],
-        x: &mut [f64],
-        tol: f64,
-        max_iter: usize,
-    ) -> (usize, f64) {
-        let op = Op {
-            pat,
-            k,
-            c_k,
-            mass,
-            c_m,
-            mask: &self.mask,
-        };
-        let out = pcg(&op, Precond::Jacobi(&self.jac), &mut self.work, b, x, tol, max_iter);
-        self.cg_iterations += out.0;
-        out
-    }
-
-    /// PCG on `A = c_k K + c_m M` preconditioned by the cached Cholesky
-    /// factor of an earlier matrix (the lazy update's stale factorization).
-    /// Returns `None` when no factorization is cached.
-    #[allow(clippy::too_many_arguments)]
-    pub fn solve_factor_pcg(
-        &mut self,
-        pat: &Pattern,
-        k: &[M3],
-        c_k: f64,
-        mass: &[f64],
-        c_m: f64,
-        b: &[f64],
-        x: &mut [f64],
-        tol: f64,
-        max_iter: usize,
-    ) -> Option<(usize, f64)> {
-        if !self.has_factorization() {
-            return None;
-        }
-        let op = Op {
-            pat,
-            k,
-            c_k,
-            mass,
-            c_m,
-            mask: &self.mask,
-        };
-        let chol = self.chol.as_mut().expect("checked above");
-        let pre = Precond::Factor { chol, dofs: &self.dofs };
-        let out = pcg(&op, pre, &mut self.work, b, x, tol, max_iter);
-        self.cg_iterations += out.0;
-        Some(out)
-    }
-}
-
-impl CholState {
-    /// Make (`on`) or drop the `f32` copy of the factor.
-    fn set_single(&mut self, on: bool) {
-        self.l32.clear();
-        if on {
-            self.l32.extend(self.l.iter().map(|&v| v as f32));
-        }
-    }
-
-    /// The preconditioner `z = A_0^-1 r` of the stale-factor PCG: with the
-    /// `f32` copy of the factor when there is one (solve in `f32`, `r`
-    /// rounded to `f32`, `z` widened back), else [`CholState::solve_full`].
-    #[inline(never)]
-    fn solve_precond(&mut self, dofs: &[usize], r: &[f64], z: &mut [f64]) {
-        if self.l32.is_empty() {
-            return self.solve_full(dofs, r, z);
-        }
-        if let Some(split) = &mut self.split {
-            return split.solve(&self.l32, r, z);
-        }
-        let rhs = &mut self.rhs32;
-        for (v, &d) in rhs.iter_mut().zip(dofs) {
-            *v = r[d] as f32;
-        }
-        let n = rhs.len();
-        LltRef::new(&self.symbolic, &self.l32).solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(rhs, n, 1),
-            Par::Seq,
-            MemStack::new(&mut self.mem),
-        );
-        for (v, &d) in rhs.iter().zip(dofs) {
-            z[d] = f64::from(*v);
-        }
-    }
-
-    /// `z = A_0^-1 r` on the free DOFs with the cached factor (`r`, `z` full
-    /// DOF vectors; `z`'s constrained entries are left untouched).
-    #[inline(never)]
-    fn solve_full(&mut self, dofs: &[usize], r: &[f64], z: &mut [f64]) {
-        let rhs = &mut self.rhs;
-        for (v, &d) in rhs.iter_mut().zip(dofs) {
-            *v = r[d];
-        }
-        let n = rhs.len();
-        LltRef::new(&self.symbolic, &self.l).solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(rhs, n, 1),
-            Par::Seq,
-            MemStack::new(&mut self.mem),
-        );
-        for (v, &d) in rhs.iter().zip(dofs) {
-            z[d] = *v;
-        }
     }
 }
 

@@ -28,14 +28,17 @@
 //!    then the wall) puts the links friction moved back in their boxes.
 
 use crate::mapping::BetaMapping;
-use crate::rules::{LinkParams, box_violation, friction_correction, project_into_box, relaxation_target};
+use crate::rules::LinkParams;
 use crate::volume::VesselLattice;
 use std::sync::Arc;
+use surgbench_core::flow::FlowField;
 use surgbench_core::frames::{parallel_transport, rotate_about};
-use surgbench_core::scene::FlowField;
 use surgbench_core::{
     ContactObs, DeviceCommand, Iso3, Mat3, Model, Observation, RodBody, RodObs, Sdf, SimError, StepStats, Vec3,
 };
+
+mod collide;
+mod relax;
 
 /// The frame in which the valid boxes are axis-aligned.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -92,6 +95,40 @@ pub struct WireConfig {
     /// force; `None` takes `E A / Delta` of the section at the clamp (the
     /// axial stiffness of one link).
     pub haptic_k: Option<f64>,
+}
+
+impl WireConfig {
+    /// The settings are in range (the messages name the knob).
+    pub fn validate(&self) -> Result<(), String> {
+        if self.segments == 0 {
+            return Err("segments must be >= 1".into());
+        }
+        if self.iterations == 0 {
+            return Err("iterations must be >= 1".into());
+        }
+        if !(self.dt > 0.0 && self.dt.is_finite()) {
+            return Err(format!("dt must be > 0 s, got {}", self.dt));
+        }
+        if !(self.beta_constant >= 0.0 && self.beta_constant.is_finite()) {
+            return Err(format!("beta constant must be >= 0, got {}", self.beta_constant));
+        }
+        if let BetaMapping::Navigation { yield_strain } = self.beta_mapping
+            && !(yield_strain > 0.0 && yield_strain < 1.0)
+        {
+            return Err(format!("yield_strain must be in (0, 1), got {yield_strain}"));
+        }
+        if let Some(b) = self.beta_override
+            && !(b >= 0.0 && b.is_finite())
+        {
+            return Err(format!("beta must be >= 0, got {b}"));
+        }
+        if let Some(k) = self.haptic_k
+            && !(k >= 0.0 && k.is_finite())
+        {
+            return Err(format!("haptic_k must be >= 0 N/m, got {k}"));
+        }
+        Ok(())
+    }
 }
 
 /// The simulated wire (one rod of a scene).
@@ -168,33 +205,7 @@ impl ChainmailWire {
         cfg: &WireConfig,
     ) -> Result<Self, String> {
         rod.validate()?;
-        if cfg.segments == 0 {
-            return Err("segments must be >= 1".into());
-        }
-        if cfg.iterations == 0 {
-            return Err("iterations must be >= 1".into());
-        }
-        if !(cfg.dt > 0.0 && cfg.dt.is_finite()) {
-            return Err(format!("dt must be > 0 s, got {}", cfg.dt));
-        }
-        if !(cfg.beta_constant >= 0.0 && cfg.beta_constant.is_finite()) {
-            return Err(format!("beta constant must be >= 0, got {}", cfg.beta_constant));
-        }
-        if let BetaMapping::Navigation { yield_strain } = cfg.beta_mapping
-            && !(yield_strain > 0.0 && yield_strain < 1.0)
-        {
-            return Err(format!("yield_strain must be in (0, 1), got {yield_strain}"));
-        }
-        if let Some(b) = cfg.beta_override
-            && !(b >= 0.0 && b.is_finite())
-        {
-            return Err(format!("beta must be >= 0, got {b}"));
-        }
-        if let Some(k) = cfg.haptic_k
-            && !(k >= 0.0 && k.is_finite())
-        {
-            return Err(format!("haptic_k must be >= 0 N/m, got {k}"));
-        }
+        cfg.validate()?;
         let c = &env.contact;
         if !(0.0..=1.0).contains(&c.friction_static) {
             return Err(format!(
@@ -434,366 +445,23 @@ impl ChainmailWire {
         if dir > 0 { i } else { i - 1 }
     }
 
-    /// Enforce the valid box of node `i + dir` around sponsor `i`; returns
-    /// whether the neighbour moved. Prescribed nodes never move.
-    fn enforce(&mut self, i: usize, dir: isize) -> bool {
-        let j = (i as isize + dir) as usize;
-        if j < self.n_fixed {
-            return false;
-        }
-        let (f, d) = if self.frame == BoxFrame::Link {
-            self.link_box(i, dir, &self.link_frames())
-        } else {
-            self.box_geometry(dir)
-        };
-        let (q, moved) = project_into_box(&self.x[i], &self.x[j], &d, &f, &self.links[Self::link_of(i, dir)]);
-        self.x[j] = q;
-        moved
-    }
-
-    /// The paper's propagation from sponsor `k` (after it moved): each
-    /// neighbour outside its box moves into it and sponsors the next; in each
-    /// direction the wave stops at the first valid neighbour (or the clamp /
-    /// the tip). Returns how many elements moved.
-    pub fn propagate_from(&mut self, k: usize) -> usize {
-        let n = self.x.len();
-        let mut moved = 0;
-        let mut i = k;
-        while i + 1 < n && self.enforce(i, 1) {
-            moved += 1;
-            i += 1;
-        }
-        let mut i = k;
-        while i > 0 && self.enforce(i, -1) {
-            moved += 1;
-            i -= 1;
-        }
-        moved
-    }
-
-    /// The clamp sponsors the whole chain: after every free element was
-    /// displaced (gravity, flow), each one is checked against its base-side
-    /// neighbour in order from the clamp to the tip.
-    fn sweep_from_base(&mut self) {
-        if self.frame != BoxFrame::Link {
-            for i in self.n_fixed - 1..self.x.len() - 1 {
-                self.enforce(i, 1);
-            }
-            return;
-        }
-        // carry the frame of link i - 1 along (it depends on nodes already
-        // enforced in this sweep only)
-        let (mut t, mut d1) = (self.tb, self.d1b);
-        for i in self.n_fixed - 1..self.x.len() - 1 {
-            let (tp, dp) = Self::turned(&t, &d1, &self.turn[i], 1.0);
-            let f = Self::axes(&tp, &dp);
-            let d = Vec3::new(self.delta, 0.0, 0.0);
-            let (q, _) = project_into_box(&self.x[i], &self.x[i + 1], &d, &f, &self.links[i]);
-            self.x[i + 1] = q;
-            let tn = unit_or(q - self.x[i], tp);
-            d1 = parallel_transport(&dp, &tp, &tn);
-            d1 = unit_or(d1 - tn * tn.dot(&d1), d1);
-            t = tn;
-        }
-    }
-
-    /// Predictions `Q` of free node `i` by its neighbours, into `out`.
-    fn predictions(&self, i: usize, out: &mut [Vec3; 2]) -> usize {
-        let n = self.x.len();
-        let tb = self.t_base();
-        let d = self.delta;
-        out[0] = self.x[i - 1] + tb * d;
-        if i + 1 < n {
-            out[1] = self.x[i + 1] - tb * d;
-            2
-        } else {
-            1
-        }
-    }
-
-    /// One Gauss–Seidel relaxation sweep, base to tip: each free element goes
-    /// to `P* = mean(Q_i)`. In the `World`/`Base` frames this is exact
-    /// coordinate minimization of [`ChainmailWire::relaxation_energy`] (each
-    /// link's term `||P_j+1 - P_j - delta||^2` appears once per end), so the
-    /// energy never increases.
-    pub fn relax_sweep(&mut self) {
-        if self.frame == BoxFrame::Link {
-            self.relax_sweep_link();
-            return;
-        }
-        let mut q = [Vec3::zeros(); 2];
+    /// Move the free elements by gravity over the step (`g dt^2`) and,
+    /// with flow, by the blood's displacement `v dt` (carried by the
+    /// vessel's lattice when it moves).
+    fn drift(&mut self, dt: f64) {
+        let gd = self.gravity * (dt * dt);
         for i in self.n_fixed..self.x.len() {
-            let m = self.predictions(i, &mut q);
-            self.x[i] = relaxation_target(&q[..m]);
-        }
-    }
-
-    /// Link-frame relaxation sweep, base to tip. The paper's rule with
-    /// body-frame offsets, `P* = (Q_1 + Q_2)/2` with the straight
-    /// continuations `Q_1 = 2 P_{i-1} - P_{i-2}` and `Q_2 = 2 P_{i+1} - P_{i+2}`
-    /// (linearized), multiplies a zigzag `(-1)^k a` by `-3` per sweep and
-    /// diverges (seen on `arch-insertion`). So each node goes to the
-    /// minimizer of the three body-frame residuals it appears in,
-    /// `P* = (Q_1 + Q_2 + 4 Q_M) / 6` (weights from the discrete bending
-    /// form `sum_i ||P_{i+1} - 2 P_i + P_{i-1}||^2`, whose Gauss–Seidel
-    /// converges): `Q_1 = P_{i-1} + Delta t'` (link `i - 2`'s tangent turned
-    /// forwards at node `i - 1`), `Q_2 = P_{i+1} - Delta t''` (link `i + 1`'s
-    /// tangent turned backwards at node `i + 1`), and the vertex prediction
-    /// `Q_M = (P_{i-1} + P_{i+1})/2 + Delta (R(-phi/2) c - R(phi/2) c)/2`
-    /// (`c` the chord direction, `phi` the rest turning at node `i`: the
-    /// vertex of two rest links around that chord). Terms that do not exist
-    /// at the tip drop out with their weights.
-    ///
-    /// Cost: on a wire without rest curvature every turning is zero, so the
-    /// directors `d1` never enter a prediction; the sweep then carries only
-    /// the tangents and takes link `i + 1`'s tangent straight from its nodes
-    /// (the value [`ChainmailWire::link_frames`] would give, to the bit,
-    /// unless the link has zero length), skipping the frame transport.
-    fn relax_sweep_link(&mut self) {
-        let n = self.x.len();
-        let curved = self.turn.iter().any(|k| *k != [0.0, 0.0]);
-        let fr = if curved { self.link_frames() } else { Vec::new() };
-        let (mut t, mut d1) = (self.tb, self.d1b);
-        for i in self.n_fixed..n {
-            let (tp, dp) = if curved {
-                Self::turned(&t, &d1, &self.turn[i - 1], 1.0)
-            } else {
-                (t, d1)
-            };
-            let mut sum = self.x[i - 1] + tp * self.delta;
-            let mut w = 1.0;
-            if i + 1 < n {
-                let c = unit_or(self.x[i + 1] - self.x[i - 1], tp);
-                let k = self.turn[i];
-                let mut qm = 0.5 * (self.x[i - 1] + self.x[i + 1]);
-                if k != [0.0, 0.0] {
-                    let om = dp * k[0] + tp.cross(&dp) * k[1];
-                    let a = om.norm();
-                    let axis = om / a;
-                    // R(-a/2) c - R(a/2) c with one sin_cos (sin is odd,
-                    // cos even: the same bits as two evaluations)
-                    let (s, co) = (0.5 * a).sin_cos();
-                    let d = rodrigues(&c, &axis, -s, co) - rodrigues(&c, &axis, s, co);
-                    qm += d * (0.5 * self.delta);
-                }
-                sum += 4.0 * qm;
-                w += 4.0;
-            }
-            if i + 2 < n {
-                let tq = if curved {
-                    Self::turned(&fr[i + 1].0, &fr[i + 1].1, &self.turn[i + 1], -1.0).0
-                } else {
-                    unit_or(self.x[i + 2] - self.x[i + 1], tp)
+            let mut d = gd;
+            if let Some(fl) = &self.flow {
+                d += match &self.lattice {
+                    // blood carried by the vessel: the rest flow at the
+                    // element's rest point plus the lattice's motion
+                    Some(lat) => fl.velocity(&lat.rest_point(&self.x[i])) * dt + lat.step_motion(&self.x[i]),
+                    None => fl.velocity(&self.x[i]) * dt,
                 };
-                sum += self.x[i + 1] - tq * self.delta;
-                w += 1.0;
             }
-            let p = sum / w;
-            self.x[i] = p;
-            let tn = unit_or(p - self.x[i - 1], tp);
-            if curved {
-                d1 = parallel_transport(&dp, &tp, &tn);
-                d1 = unit_or(d1 - tn * tn.dot(&d1), d1);
-            }
-            t = tn;
+            self.x[i] += d;
         }
-    }
-
-    /// The paper's relaxation energy `sum_P sum_i ||P - Q_i||^2` over every
-    /// element `P` and its neighbours' predictions `Q_i` (m^2).
-    pub fn relaxation_energy(&self) -> f64 {
-        let n = self.x.len();
-        let mut e = 0.0;
-        let mut q = [Vec3::zeros(); 2];
-        for i in 2..n {
-            let m = self.predictions(i, &mut q);
-            for qq in &q[..m] {
-                e += (self.x[i] - qq).norm_squared();
-            }
-        }
-        // the clamp's prediction from the first free element
-        if n > 2 {
-            e += (self.x[1] - (self.x[2] - self.t_base() * self.delta)).norm_squared();
-        }
-        e
-    }
-
-    /// Largest box violation over all links, relative to `Delta`.
-    pub fn box_residual(&self) -> f64 {
-        let mut r: f64 = 0.0;
-        let fr = if self.frame == BoxFrame::Link {
-            self.link_frames()
-        } else {
-            Vec::new()
-        };
-        for i in 1..self.x.len() - 1 {
-            let (f, d) = if self.frame == BoxFrame::Link {
-                self.link_box(i, 1, &fr)
-            } else {
-                self.box_geometry(1)
-            };
-            r = r.max(box_violation(&self.x[i], &self.x[i + 1], &d, &f, &self.links[i]));
-        }
-        r / self.delta
-    }
-
-    /// Feed or withdraw wire at the base for the current insertion and place
-    /// the prescribed nodes on the clamp axis.
-    fn update_feed(&mut self) -> Result<(), String> {
-        let tol = 1e-9 * self.delta;
-        let fixed = |w: &Self, k: usize| w.sigma[k] + w.insertion <= tol;
-        // retraction: drop elements that went more than one link behind
-        while self.x.len() > 2 && fixed(self, 2) {
-            self.sigma.remove(0);
-            self.turn.remove(0);
-            self.x.remove(0);
-            self.x_prev.remove(0);
-            self.links.remove(0);
-        }
-        // insertion: feed new elements so that two are always prescribed
-        while !fixed(self, 1) {
-            let s = self.sigma[0] - self.delta;
-            let p = self.link_params_at(s + 0.5 * self.delta)?;
-            let r = self.rest_point(s);
-            self.sigma.insert(0, s);
-            let k = self.turn_at(s);
-            self.turn.insert(0, k);
-            self.x.insert(0, r);
-            self.x_prev.insert(0, r);
-            self.links.insert(0, p);
-        }
-        self.n_fixed = (0..self.x.len()).take_while(|&k| fixed(self, k)).count();
-        if self.n_fixed >= self.x.len() {
-            return Err(format!("wire withdrawn past its tip (insertion {} m)", self.insertion));
-        }
-        for k in 0..self.n_fixed {
-            self.x[k] = self.rest_point(self.sigma[k]);
-        }
-        Ok(())
-    }
-
-    /// Index of the first tip element: the first node of the last section
-    /// when the wire has several, otherwise the distal node.
-    fn tip_element(&self) -> usize {
-        let n = self.x.len();
-        let secs = &self.rod.sections;
-        if secs.len() > 1 {
-            let start = secs[secs.len() - 2].until;
-            (self.n_fixed..n)
-                .find(|&k| self.sigma[k] >= start - 1e-12)
-                .unwrap_or(n - 1)
-        } else {
-            n - 1
-        }
-    }
-
-    /// Normal wall projection inside the relaxation loop (`Link` frame):
-    /// every free element closer than `epsilon` moves by `(phi + epsilon)`
-    /// along `-grad phi`; the corrections add up in `wall_depth` for the
-    /// friction factor at the end of the step.
-    fn wall_pass(&mut self, accumulate: bool) {
-        let Some(sdf) = self.vessel.clone() else {
-            return;
-        };
-        let eps = self.margin;
-        for i in self.n_fixed..self.x.len() {
-            let phi = sdf.distance(&self.x[i]);
-            if phi <= -eps {
-                continue;
-            }
-            let g = sdf.gradient(&self.x[i]);
-            let gn = g.norm();
-            if gn.is_nan() || gn <= 0.0 {
-                continue;
-            }
-            self.x[i] -= g * ((phi + eps) / gn);
-            if accumulate {
-                self.wall_depth[i] += phi + eps;
-            }
-        }
-    }
-
-    fn collide(&mut self) {
-        self.contacts.clear();
-        self.hand_force = Vec3::zeros();
-        let Some(sdf) = self.vessel.clone() else {
-            return;
-        };
-        let eps = self.margin;
-        // a node the in-loop wall passes left on the wall (to rounding)
-        let tol = 1e-9 * self.delta;
-        let mut touched = Vec::new();
-        for i in self.n_fixed..self.x.len() {
-            let phi = sdf.distance(&self.x[i]);
-            let prior = self.wall_depth.get(i).copied().unwrap_or(0.0);
-            if phi <= -eps - if prior > 0.0 { tol } else { 0.0 } {
-                continue;
-            }
-            let g = sdf.gradient(&self.x[i]);
-            let gn = g.norm();
-            if gn.is_nan() || gn <= 0.0 {
-                continue;
-            }
-            let n = g / gn;
-            let depth = (phi + eps).max(0.0);
-            let dp_n = -n * depth;
-            let depth = depth + prior;
-            self.x[i] += dp_n;
-            // slip against the wall, which itself moved if the vessel beats
-            let mut m = self.x[i] - self.x_prev[i];
-            if let Some(lat) = &self.lattice {
-                m -= lat.step_motion(&self.x[i]);
-            }
-            let m_t = m - n * m.dot(&n);
-            let f = friction_correction(&m_t, depth, self.friction);
-            self.x[i] += f;
-            let pen = sdf.distance(&self.x[i]).max(0.0);
-            self.contacts.push(ContactObs {
-                point: self.x[i],
-                force: (dp_n + f) * self.haptic_k,
-                penetration: pen,
-            });
-            self.hand_force += f * self.haptic_k;
-            touched.push(i);
-        }
-        if self.frame == BoxFrame::Link && !touched.is_empty() {
-            self.restore_boxes_on_wall();
-            for (c, &i) in self.contacts.iter_mut().zip(&touched) {
-                c.point = self.x[i];
-                c.penetration = sdf.distance(&self.x[i]).max(0.0);
-            }
-        }
-    }
-
-    /// The final length-restoring pass (`Link` frame, after friction): the
-    /// friction correction moves contact elements off their boxes (the
-    /// relaxation ran before it), e.g. a sticking tip whose neighbour was
-    /// pushed on, so the clamp sponsors the chain once more
-    /// ([`ChainmailWire::sweep_from_base`]: every link back in its box) and a
-    /// last normal wall projection keeps non-penetration. The friction's
-    /// share of the hand force is the correction it made; the links carry it
-    /// back to the clamp. Measured on `coronary-tortuous` (40 segments,
-    /// `beta_mapping=1`): without it the tip link ends compressed by 5.3 %
-    /// at 38.0 s (2.6 % from the last wall pass, 2.7 % from friction); with
-    /// it the first watchdog trip moves to 43.7 s (see the crate report).
-    fn restore_boxes_on_wall(&mut self) {
-        self.sweep_from_base();
-        self.wall_pass(false);
-    }
-
-    fn first_link(&self) -> f64 {
-        let a = self.n_fixed - 1;
-        (self.x[a + 1] - self.x[a]).norm()
-    }
-
-    fn check_finite(&self) -> Result<(), SimError> {
-        if let Some(i) = self.x.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
-            return Err(SimError::Diverged {
-                t: self.time,
-                reason: format!("node {i} is not finite: {:?}", self.x[i]),
-            });
-        }
-        Ok(())
     }
 
     /// Advance one step of `dt` seconds with the operator's command.
@@ -826,19 +494,7 @@ impl ChainmailWire {
             self.lattice = Some(lat);
         }
 
-        let gd = self.gravity * (dt * dt);
-        for i in self.n_fixed..self.x.len() {
-            let mut d = gd;
-            if let Some(fl) = &self.flow {
-                d += match &self.lattice {
-                    // blood carried by the vessel: the rest flow at the
-                    // element's rest point plus the lattice's motion
-                    Some(lat) => fl.velocity(&lat.rest_point(&self.x[i])) * dt + lat.step_motion(&self.x[i]),
-                    None => fl.velocity(&self.x[i]) * dt,
-                };
-            }
-            self.x[i] += d;
-        }
+        self.drift(dt);
         // in the link frame the rotation reaches the wire through `d1b`: the
         // frames carry it rigidly to every link (and turn a curved tip)
         if d_rot != 0.0 && self.frame != BoxFrame::Link {

@@ -1,0 +1,188 @@
+//! The harness factory of the discrete elastic rod: [`DerFactory`]
+//! (`id = "der"`), its capabilities, fidelity keys and defaults (the time
+//! step of static scenes from the first cantilever bending period).
+
+use crate::model::DerModel;
+use crate::rod::{DEFAULT_FRICTION_CREEP, DEFAULT_SUBSTEP_DEPTH, DerParams, DerRod, Integrator, TwistDynamics};
+use surgbench_core::beam::first_bending_frequency;
+use surgbench_core::{BuildError, Capability, Family, Fidelity, FidelityKey, Model, ModelFactory, Scene, Unsupported};
+
+const CAPABILITIES: &[Capability] = &[
+    Capability::Rod,
+    Capability::Twist,
+    Capability::TipForce,
+    Capability::LoadRamp,
+    Capability::VaryingProperties,
+    Capability::RestCurvature,
+    Capability::Insertion,
+    Capability::VesselContact,
+    Capability::Friction,
+    Capability::Flow,
+    Capability::MovingVessel,
+    Capability::HapticForce,
+];
+
+const KEYS: &[FidelityKey] = &[
+    FidelityKey {
+        name: "integrator",
+        doc: "time integrator: 0 = backward Euler (default), 1 = Newmark beta=1/4 gamma=1/2",
+    },
+    FidelityKey {
+        name: "dynamic_twist",
+        doc: "0 = quasi-static twist (default), 1 = rotational inertia rho J |e|",
+    },
+    FidelityKey {
+        name: "damping",
+        doc: "mass-proportional viscous damping (1/s), default 0",
+    },
+    FidelityKey {
+        name: "tolerance",
+        doc: "Newton tolerance on the update (positions / rod length, angles in rad), default 1e-9",
+    },
+    FidelityKey {
+        name: "friction_creep",
+        doc: "stick-slip width of the smoothed friction as a creep speed (m/s), default 1e-6",
+    },
+    FidelityKey {
+        name: "substep_depth",
+        doc: "largest number of step halvings when Newton fails (integer 0..=20), default 6 (dt/64)",
+    },
+];
+
+/// Default number of segments over the free length.
+pub const DEFAULT_SEGMENTS: usize = 40;
+
+/// Default time step for dynamic scenes (s): the 1 kHz haptic rate.
+pub const DEFAULT_DT: f64 = 1e-3;
+
+/// Factory of the discrete elastic rod (`id = "der"`).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct DerFactory;
+
+/// First cantilever bending period `2 pi / omega_1` (s) of the base section
+/// ([`first_bending_frequency`]), used to pick the statics time step.
+fn first_period(scene: &Scene) -> Option<f64> {
+    let rod = scene.rods().next()?;
+    let s = rod.section_at(0.0);
+    let w = first_bending_frequency(s, rod.length);
+    let t = 2.0 * std::f64::consts::PI / w;
+    t.is_finite().then_some(t)
+}
+
+impl ModelFactory for DerFactory {
+    fn id(&self) -> &'static str {
+        "der"
+    }
+    fn description(&self) -> &'static str {
+        "discrete elastic rod (Bergou 2008/2010), implicit Newton with banded Cholesky"
+    }
+    fn family(&self) -> Family {
+        Family::Rod
+    }
+    fn capabilities(&self) -> &'static [Capability] {
+        CAPABILITIES
+    }
+    fn fidelity_keys(&self) -> &'static [FidelityKey] {
+        KEYS
+    }
+
+    /// 40 segments, 25 Newton iterations; `dt` = 1 ms for dynamic scenes, and
+    /// a quarter of the first bending period (at most `duration / 50`) for
+    /// statics scenes, where backward Euler then damps the transient fast.
+    fn default_fidelity(&self, scene: &Scene) -> Fidelity {
+        let dt = match (scene.settle, first_period(scene)) {
+            (Some(_), Some(t)) => (0.25 * t).min(scene.duration / 50.0),
+            _ => DEFAULT_DT,
+        };
+        Fidelity {
+            segments: Some(DEFAULT_SEGMENTS),
+            mesh_level: None,
+            dt: Some(dt),
+            iterations: Some(25),
+            extras: Default::default(),
+        }
+    }
+
+    fn check(&self, scene: &Scene) -> Result<(), Unsupported> {
+        let rods = scene.rods().count();
+        if rods != 1 {
+            return Err(Unsupported::new(format!(
+                "der simulates exactly one rod, the scene has {rods}"
+            )));
+        }
+        if scene.tissues().next().is_some() {
+            return Err(Unsupported::new("der does not model tissue bodies"));
+        }
+        surgbench_core::model::check_capabilities(self.id(), self.capabilities(), scene)
+    }
+
+    fn build(&self, scene: &Scene, fidelity: &Fidelity) -> Result<Box<dyn Model>, BuildError> {
+        self.check(scene)?;
+        scene.validate().map_err(|e| BuildError::bad("scene", e))?;
+        fidelity
+            .check_extras(KEYS)
+            .map_err(|e| BuildError::bad("fidelity", e.0))?;
+        let f = self.default_fidelity(scene).merged(fidelity);
+        let body = scene.rods().next().expect("checked: one rod");
+        let mut rod = DerRod::from_body(body, f.segments.unwrap_or(DEFAULT_SEGMENTS))?;
+        let dt = f.dt.unwrap_or(DEFAULT_DT);
+        if !(dt > 0.0 && dt.is_finite()) {
+            return Err(BuildError::bad("dt", format!("must be > 0 s, got {dt}")));
+        }
+        let flag = |name: &str| -> Result<bool, BuildError> {
+            let v = f.extra(name, 0.0);
+            if v == 0.0 {
+                Ok(false)
+            } else if v == 1.0 {
+                Ok(true)
+            } else {
+                Err(BuildError::bad(name, format!("must be 0 or 1, got {v}")))
+            }
+        };
+        let damping = f.extra("damping", 0.0);
+        if !(damping >= 0.0 && damping.is_finite()) {
+            return Err(BuildError::bad("damping", format!("must be >= 0 1/s, got {damping}")));
+        }
+        let tolerance = f.extra("tolerance", 1e-9);
+        if !(tolerance > 0.0 && tolerance < 1.0) {
+            return Err(BuildError::bad(
+                "tolerance",
+                format!("must be in (0, 1), got {tolerance}"),
+            ));
+        }
+        let creep = f.extra("friction_creep", DEFAULT_FRICTION_CREEP);
+        if !(creep > 0.0 && creep.is_finite()) {
+            return Err(BuildError::bad(
+                "friction_creep",
+                format!("must be > 0 m/s, got {creep}"),
+            ));
+        }
+        let depth = f.extra("substep_depth", DEFAULT_SUBSTEP_DEPTH as f64);
+        if !(0.0..=20.0).contains(&depth) || depth.fract() != 0.0 {
+            return Err(BuildError::bad(
+                "substep_depth",
+                format!("must be an integer in 0..=20, got {depth}"),
+            ));
+        }
+        rod.params = DerParams {
+            integrator: if flag("integrator")? {
+                Integrator::Newmark
+            } else {
+                Integrator::BackwardEuler
+            },
+            twist: if flag("dynamic_twist")? {
+                TwistDynamics::Dynamic
+            } else {
+                TwistDynamics::QuasiStatic
+            },
+            damping,
+            max_iterations: f.iterations.unwrap_or(25),
+            tolerance,
+            friction_creep: creep,
+            max_substep_depth: depth as usize,
+        };
+        rod.gravity = scene.gravity;
+        rod.set_environment(&scene.environment);
+        Ok(Box::new(DerModel::new(rod, dt)))
+    }
+}

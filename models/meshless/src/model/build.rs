@@ -1,0 +1,188 @@
+//! Building a [`MeshlessTissue`] for a scene at a fidelity: nodes, support
+//! radii, masses, the MLS surface map, contact and loads.
+
+use super::*;
+use crate::contact::SphereContact;
+use crate::elastic::{PointElastic, StateCache, moment_rcond};
+use crate::kdtree::KdTree;
+use crate::mls::MlsMap;
+use crate::pbd::PbdConstraints;
+use crate::pressure::PressureLoad;
+use surgbench_core::mesh::boundary_faces;
+use surgbench_core::{BuildError, Fidelity, ModelFactory, Scene, TissueBody, Unsupported, Vec3};
+
+impl MeshlessTissue {
+    /// Build the tissue of `scene` (exactly one tissue body) at `fidelity`.
+    pub fn new(scene: &Scene, fidelity: &Fidelity) -> Result<Self, BuildError> {
+        MeshlessFactory.check(scene)?;
+        scene.validate().map_err(|e| BuildError::bad("scene", e))?;
+        let set = MeshlessSettings::resolve(scene, fidelity)?;
+        let body: &TissueBody = scene.tissues().next().expect("checked: one tissue");
+        let mesh = &body.mesh;
+        let nn = mesh.nodes.len();
+        if mesh.tets.is_empty() {
+            return Err(BuildError::bad("mesh", "tissue mesh has no tets"));
+        }
+        let m = body.material;
+        let mut volume = vec![0.0; nn];
+        let mut rest_volume = 0.0;
+        let (mut edge_sum, mut edge_n) = (0.0, 0usize);
+        for t in &mesh.tets {
+            let p = t.map(|i| mesh.nodes[i]);
+            let v = surgbench_core::mesh::tet_volume(&p[0], &p[1], &p[2], &p[3]).abs();
+            rest_volume += v;
+            for &i in t {
+                volume[i] += v / 4.0;
+            }
+            for a in 0..4 {
+                for b in a + 1..4 {
+                    edge_sum += (p[b] - p[a]).norm();
+                    edge_n += 1;
+                }
+            }
+        }
+        if let Some(i) = volume.iter().position(|&v| !(v > 0.0)) {
+            return Err(BuildError::bad(
+                "mesh",
+                format!("node {i} belongs to no tet, so it has no volume"),
+            ));
+        }
+        let mean_edge = edge_sum / edge_n as f64;
+        let local_edge = local_edge_lengths(mesh);
+        let longest = longest_edges(mesh);
+        let tree = KdTree::new(&mesh.nodes);
+        let mut found = Vec::new();
+        let mut raised = vec![false; nn];
+        let support: Vec<f64> = (0..nn)
+            .map(|i| {
+                let (h, floor) = (set.support_factor * local_edge[i], set.support_floor * longest[i]);
+                if h < floor && moment_rcond(&mesh.nodes, &tree, i, h, &mut found) < RAISE_BELOW_RCOND {
+                    raised[i] = true;
+                    floor
+                } else {
+                    h
+                }
+            })
+            .collect();
+        let el = PointElastic::new(
+            &mesh.nodes,
+            &volume,
+            &support,
+            m.youngs_modulus,
+            m.poisson_ratio,
+            set.stabilization * m.youngs_modulus,
+        )
+        .map_err(|e| refusal(fidelity, "support_factor", e.to_string()))?;
+        let surface_faces_global = boundary_faces(mesh);
+        let mut surface_nodes: Vec<usize> = surface_faces_global.iter().flatten().copied().collect();
+        surface_nodes.sort_unstable();
+        surface_nodes.dedup();
+        let mut local = vec![usize::MAX; nn];
+        for (k, &i) in surface_nodes.iter().enumerate() {
+            local[i] = k;
+        }
+        let surface_faces = surface_faces_global.iter().map(|f| f.map(|i| local[i])).collect();
+        let targets: Vec<Vec3> = surface_nodes.iter().map(|&i| mesh.nodes[i]).collect();
+        let mls_radius: Vec<f64> = surface_nodes
+            .iter()
+            .map(|&i| {
+                let r = set.mls_factor * local_edge[i];
+                if raised[i] {
+                    r.max(set.support_floor * longest[i])
+                } else {
+                    r
+                }
+            })
+            .collect();
+        let mls = MlsMap::new(&mesh.nodes, &targets, &mls_radius)
+            .map_err(|e| refusal(fidelity, "mls_factor", e.to_string()))?;
+        let mut axis_free = vec![Vec3::repeat(1.0); nn];
+        for &i in &body.fixed_nodes {
+            axis_free[i] = Vec3::zeros();
+        }
+        for (i, axes) in &body.partial_fixed {
+            for a in 0..3 {
+                if axes[a] {
+                    axis_free[*i][a] = 0.0;
+                }
+            }
+        }
+        if !body.driven_nodes.iter().all(|(_, d)| d.iter().all(|c| c.is_finite())) {
+            return Err(BuildError::bad("driven_nodes", "displacements must be finite"));
+        }
+        for &(i, _) in &body.driven_nodes {
+            axis_free[i] = Vec3::zeros();
+        }
+        let mass: Vec<f64> = volume.iter().map(|v| v * m.density).collect();
+        let (lo, hi) = surgbench_core::mesh::bounds(mesh);
+        let extent = (hi - lo).max();
+        let damping = match (set.damping, set.integrator, scene.settle) {
+            (Some(c), _, _) => c,
+            // Critical damping of the first axial mode of a bar of length L:
+            // omega_1 = (pi / 2L) sqrt(E / rho), c = 2 omega_1.
+            (None, Integrator::SymplecticEuler, Some(_)) => {
+                2.0 * std::f64::consts::PI / (2.0 * extent) * (m.youngs_modulus / m.density).sqrt()
+            }
+            _ => 0.0,
+        };
+        let pbd = set
+            .pbd
+            .then(|| PbdConstraints::new(&mesh.nodes, &mesh.tets, set.pbd_stretch, set.pbd_tet));
+        let contact = match &body.indenter {
+            None => None,
+            Some(ind) if set.integrator == Integrator::SymplecticEuler => {
+                return Err(Unsupported::new(format!(
+                    "meshless: sphere contact (indenter of radius {} m) is a stiff penalty (kappa E* sqrt(A)) solved in the implicit integrators (1, 2); the explicit one (0) would need a time step below its stability limit",
+                    ind.radius
+                ))
+                .into());
+            }
+            Some(_) if set.pbd => {
+                return Err(Unsupported::new(
+                    "meshless: the PBD corrections (pbd=1) move nodes after the contact solve and would push them into the sphere; sphere contact needs pbd=0",
+                )
+                .into());
+            }
+            Some(ind) => Some(SphereContact::new(
+                &mesh.nodes,
+                &surface_faces_global,
+                &m,
+                set.contact_stiffness,
+                *ind,
+            )),
+        };
+        let tol = local_edge.iter().map(|l| 1e-9 * m.youngs_modulus * l * l).collect();
+        Ok(Self {
+            set,
+            cache: StateCache::default(),
+            x: mesh.nodes.clone(),
+            v: vec![Vec3::zeros(); nn],
+            mass,
+            axis_free,
+            driven: body.driven_nodes.clone(),
+            gravity: scene.gravity,
+            damping,
+            tets: mesh.tets.clone(),
+            rest_volume,
+            pbd,
+            pbd_residual: 0.0,
+            surface_nodes,
+            surface_faces,
+            mls,
+            mean_edge,
+            local_edge,
+            raised: (0..nn).filter(|&i| raised[i]).collect(),
+            scale: (hi - lo).norm(),
+            tol,
+            time: 0.0,
+            hand_force: Vec3::zeros(),
+            forces: vec![Vec3::zeros(); nn],
+            forces_at_x: false,
+            pressure: PressureLoad::new(&body.pressure_faces),
+            load_scale: 0.0,
+            pforces: vec![Vec3::zeros(); nn],
+            contact,
+            el,
+        })
+    }
+}

@@ -1,0 +1,207 @@
+//! The harness contract of [`MeshlessTissue`]: stepping, observation,
+//! diagnostics and the conformance energy probe.
+
+use super::*;
+use crate::elastic::StateCache;
+use surgbench_core::{DeviceCommand, EnergyProbe, Model, Observation, SimError, StepStats, TissueObs, Vec3};
+
+impl Model for MeshlessTissue {
+    fn step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
+        if !(dt > 0.0 && dt.is_finite()) {
+            return Err(SimError::SolverFailed {
+                t: self.time,
+                reason: format!("time step must be > 0 s, got {dt}"),
+            });
+        }
+        let n = self.x.len();
+        let xn = self.x.clone();
+        self.load_scale = cmd.insertion;
+        if let Some(c) = &mut self.contact {
+            c.set_load(cmd.insertion);
+        }
+        let stats = match self.set.integrator {
+            Integrator::SymplecticEuler => {
+                self.explicit_step(dt, cmd.insertion);
+                StepStats {
+                    iterations: 0,
+                    residual: 0.0,
+                    converged: true,
+                }
+            }
+            Integrator::BackwardEuler | Integrator::QuasiStatic => self.implicit_step(&xn, dt, cmd.insertion)?,
+        };
+        if let Some(pbd) = &self.pbd {
+            let w: Vec<f64> = (0..n)
+                .map(|i| {
+                    if self.axis_free[i] == Vec3::zeros() {
+                        0.0
+                    } else {
+                        1.0 / self.mass[i]
+                    }
+                })
+                .collect();
+            self.pbd_residual = pbd.project(&mut self.x, &w, &self.axis_free, self.set.iterations);
+        }
+        for i in 0..n {
+            self.v[i] = (self.x[i] - xn[i]) / dt;
+        }
+        self.time += dt;
+        if let Some(reason) = self.check_state() {
+            return Err(SimError::Diverged { t: self.time, reason });
+        }
+        let x = std::mem::take(&mut self.x);
+        self.internal_forces(&x);
+        self.pressure_forces(&x);
+        self.x = x;
+        self.forces_at_x = true;
+        self.hand_force = self
+            .driven
+            .iter()
+            .map(|&(i, _)| self.forces[i] + self.pforces[i] + self.gravity * self.mass[i])
+            .sum::<Vec3>()
+            + self.contact.as_ref().map_or(Vec3::zeros(), |c| c.reaction(&self.x));
+        Ok(stats)
+    }
+
+    fn observe(&self) -> Observation {
+        let inverted = (0..self.x.len())
+            .filter(|&i| !(self.el.deformation_gradient(i, &self.x).determinant() > 0.0))
+            .count();
+        Observation {
+            time: self.time,
+            tissues: vec![TissueObs {
+                rest: self.el.rest.clone(),
+                nodes: self.x.clone(),
+                velocities: self.v.clone(),
+                volume_error: self.volume_error(),
+                inverted,
+            }],
+            hand_force: self.hand_force,
+            energy: self.energies(),
+            constraint_residual: self.pbd.as_ref().map(|_| self.pbd_residual),
+            ..Default::default()
+        }
+    }
+
+    fn dt(&self) -> f64 {
+        self.set.dt
+    }
+
+    fn energy_probe(&mut self) -> Option<&mut dyn EnergyProbe> {
+        Some(self)
+    }
+
+    /// The MLS surface's distance from the node surface it maps (m):
+    /// `mls_surface_error_rms_m`, `mls_surface_error_max_m` over the surface
+    /// particles, the error the mapping adds on its own in this state.
+    fn diagnostics(&self) -> std::collections::BTreeMap<String, f64> {
+        let e = self.surface_mapping_errors();
+        [
+            ("mls_surface_error_rms_m".to_string(), e.rms),
+            ("mls_surface_error_max_m".to_string(), e.max),
+        ]
+        .into()
+    }
+}
+
+/// Coordinates are the node positions `(x0, y0, z0, x1, ...)` (m); the
+/// potential is strain + hourglass energy + the sphere contact's penalty energy
+/// (sphere where the last step left it) + gravity (J); forces are `-dE/dq`
+/// (N). Pressure loads are left out: a follower load on an open surface has
+/// no potential ([`crate::pressure`]).
+impl EnergyProbe for MeshlessTissue {
+    fn coords(&self) -> Vec<f64> {
+        self.x.iter().flat_map(|p| p.iter().copied()).collect()
+    }
+    fn set_coords(&mut self, q: &[f64]) {
+        self.forces_at_x = false;
+        for (i, p) in self.x.iter_mut().enumerate() {
+            *p = Vec3::new(q[3 * i], q[3 * i + 1], q[3 * i + 2]);
+        }
+    }
+    fn potential(&self) -> f64 {
+        let (u, hg) = self.el.energy(&self.x);
+        u + hg + self.contact.as_ref().map_or(0.0, |c| c.energy(&self.x))
+            - (0..self.x.len())
+                .map(|i| self.mass[i] * self.gravity.dot(&self.x[i]))
+                .sum::<f64>()
+    }
+    fn forces(&self) -> Vec<f64> {
+        let mut cache = StateCache::default();
+        self.el.prepare(&self.x, &mut cache);
+        let mut f = vec![Vec3::zeros(); self.x.len()];
+        self.el.add_forces(&self.x, &cache, &mut f);
+        if let Some(c) = &self.contact {
+            let mut g = vec![Vec3::zeros(); self.x.len()];
+            c.add_gradient(&self.x, &mut g);
+            f.iter_mut().zip(&g).for_each(|(fi, gi)| *fi -= gi);
+        }
+        f.iter()
+            .zip(&self.mass)
+            .flat_map(|(fi, m)| (fi + self.gravity * *m).iter().copied().collect::<Vec<_>>())
+            .collect()
+    }
+    fn free(&self) -> Vec<usize> {
+        (0..3 * self.x.len())
+            .filter(|&k| self.axis_free[k / 3][k % 3] != 0.0)
+            .collect()
+    }
+}
+
+impl MeshlessTissue {
+    /// Symplectic Euler step of length `dt` (s): velocities from the forces
+    /// at the current positions, then positions; the held nodes follow the
+    /// command `insertion`.
+    fn explicit_step(&mut self, dt: f64, insertion: f64) {
+        let n = self.x.len();
+        let x = std::mem::take(&mut self.x);
+        if !self.forces_at_x {
+            self.internal_forces(&x);
+        }
+        self.pressure_forces(&x);
+        self.x = x;
+        for i in 0..n {
+            let f = self.forces[i] + self.pforces[i];
+            let a = f / self.mass[i] + self.gravity - self.v[i] * self.damping;
+            self.v[i] = (self.v[i] + a * dt).component_mul(&self.axis_free[i]);
+            self.x[i] += self.v[i] * dt;
+        }
+        let mut x = std::mem::take(&mut self.x);
+        self.apply_targets(&mut x, insertion);
+        self.x = x;
+    }
+
+    /// Backward Euler (or quasi-static) step from `xn` of length `dt` (s):
+    /// Newton-CG on the step's objective with the held nodes at the command
+    /// `insertion`.
+    fn implicit_step(&mut self, xn: &[Vec3], dt: f64, insertion: f64) -> Result<StepStats, SimError> {
+        let n = self.x.len();
+        let dynamic = self.set.integrator == Integrator::BackwardEuler;
+        let xt: Vec<Vec3> = if dynamic {
+            (0..n).map(|i| xn[i] + self.v[i] * dt).collect()
+        } else {
+            Vec::new()
+        };
+        let mut x = std::mem::take(&mut self.x);
+        self.apply_targets(&mut x, insertion);
+        self.x = x;
+        let (a_in, a_damp) = if dynamic {
+            (1.0 / (dt * dt), self.damping / dt)
+        } else {
+            (0.0, 0.0)
+        };
+        let info = self.newton(xn, &xt, a_in, a_damp);
+        let stats = StepStats {
+            iterations: info.iterations,
+            residual: info.residual,
+            converged: info.converged,
+        };
+        if !info.residual.is_finite() {
+            return Err(SimError::Diverged {
+                t: self.time + dt,
+                reason: "Newton residual is not finite".into(),
+            });
+        }
+        Ok(stats)
+    }
+}
