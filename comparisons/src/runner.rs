@@ -65,7 +65,7 @@ pub fn peak_rss_mb() -> Option<f64> {
 /// by `d rotation` about it; the hand feels `Observation::hand_force` and
 /// `hand_torque`, so it does `W = -int (F . dx + tau . dtheta)` on the rod.
 /// A tissue whose driven nodes share one displacement `d` moves by
-/// `d insertion * d`. Scenes where the clamp motion is not one rigid motion
+/// `d load * d`. Scenes where the clamp motion is not one rigid motion
 /// (several driven bodies, non-uniform driven displacements) are not
 /// accounted (`None`): their watchdog sees the raw energy growth.
 ///
@@ -98,7 +98,7 @@ struct RampedLoad {
 enum Drive {
     /// One rod clamped at this pose (overridden by a commanded base pose).
     Rod(Iso3),
-    /// One tissue whose driven nodes all move by `insertion * d` (m).
+    /// One tissue whose driven nodes all move by `load * d` (m).
     Tissue(Vec3),
     /// Not one rigid clamp motion: not accounted.
     Unknown,
@@ -146,7 +146,7 @@ impl HandWork {
                 let turn = UnitQuaternion::from_scaled_axis(cmd.rotation * tangent);
                 Some((pose.translation.vector + cmd.insertion * tangent, turn * pose.rotation))
             }
-            Drive::Tissue(d) => Some((cmd.insertion * d, UnitQuaternion::identity())),
+            Drive::Tissue(d) => Some((cmd.load * d, UnitQuaternion::identity())),
             Drive::Unknown => None,
         }
     }
@@ -571,6 +571,7 @@ mod tests {
             let cmd = DeviceCommand {
                 insertion: s1,
                 rotation: th1,
+                load: 0.0,
                 base_pose: None,
             };
             let obs = Observation {

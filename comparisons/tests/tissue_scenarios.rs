@@ -107,7 +107,7 @@ fn every_tissue_scenario_instantiates_validates_and_needs_what_it_expects() {
         // Equilibrium is read after the ramp, within the duration.
         assert_eq!(settle.min_time, p.get("ramp_time"), "{id}");
         assert!(scene.duration > settle.min_time, "{id}");
-        assert_eq!(scene.control.command_at(settle.min_time).insertion, 1.0, "{id}");
+        assert_eq!(scene.control.command_at(settle.min_time).load, 1.0, "{id}");
         // The default instance is the default mesh level.
         let at_default = sc.instantiate_at(&p, &level(tissue::DEFAULT_LEVEL)).unwrap();
         assert_eq!(body(&at_default).mesh, body(&run).mesh, "{id}");
@@ -158,17 +158,15 @@ fn mesh_levels_refine_the_meshes() {
 #[test]
 fn load_ramp_is_smooth_monotone_and_reaches_one() {
     let t = tissue::load_ramp(0.4);
-    let s: Vec<f64> = (0..=100)
-        .map(|k| t.command_at(0.5 * k as f64 / 100.0).insertion)
-        .collect();
+    let s: Vec<f64> = (0..=100).map(|k| t.command_at(0.5 * k as f64 / 100.0).load).collect();
     assert_eq!(s[0], 0.0);
     assert!(s.windows(2).all(|w| w[1] >= w[0]), "{s:?}");
-    assert_eq!(t.command_at(0.4).insertion, 1.0);
-    assert_eq!(t.command_at(10.0).insertion, 1.0);
+    assert_eq!(t.command_at(0.4).load, 1.0);
+    assert_eq!(t.command_at(10.0).load, 1.0);
     // Half way: (1 - cos(pi/2))/2 = 1/2 exactly at a key.
-    assert!((t.command_at(0.2).insertion - 0.5).abs() < 1e-15);
+    assert!((t.command_at(0.2).load - 0.5).abs() < 1e-15);
     // Starts slowly: (1 - cos(pi/16))/2 = 9.6e-3 after 1/16 of the ramp.
-    assert!((t.command_at(0.025).insertion - 0.5 * (1.0 - (PI / 16.0).cos())).abs() < 1e-15);
+    assert!((t.command_at(0.025).load - 0.5 * (1.0 - (PI / 16.0).cos())).abs() < 1e-15);
     assert!(!t.rotates());
 }
 

@@ -277,7 +277,7 @@ fn wall_scores_force_surface_and_curve_against_the_reference() {
         let mut scorer = run.scorer();
         for k in 0..=20 {
             let t = 0.02 * k as f64;
-            let f = factor * f_ref * run.scene().control.command_at(t).insertion;
+            let f = factor * f_ref * run.scene().control.command_at(t).load;
             scorer.observe_step(&observe(&run, t, Vec3::new(-f, 0.0, 0.0), |_| Vec3::zeros()));
         }
         let m = scorer.score(&observe(&run, 0.4, Vec3::zeros(), |_| Vec3::zeros()));

@@ -3,6 +3,7 @@
 
 use crate::scenario::UsageError;
 use std::path::{Path, PathBuf};
+use surgbench_core::io::table;
 
 /// Read `[parameters] key` of a reference `meta.toml`.
 pub fn meta_number(meta: &toml::Table, file: &Path, key: &str) -> Result<f64, UsageError> {
@@ -21,52 +22,48 @@ pub fn read_meta(dir: &Path) -> Result<(toml::Table, PathBuf), UsageError> {
     Ok((meta, path))
 }
 
-/// The named `columns` of a numeric CSV whose first line is a header, in
-/// the order asked, one `Vec` per row; a missing column, a short or long
-/// row, text that is not UTF-8 or a non-finite number is an error naming
-/// file, line and column. Blank lines and lines starting with `#` (the
-/// provenance a reference file opens with) are skipped.
+/// The named `columns` of a numeric CSV whose first row is a header, in
+/// the order asked, one `Vec` per row, read with [`table::rows`]; a missing
+/// column, a short or long row, text that is not UTF-8 or a non-finite
+/// number is an error naming file, line and column. Blank lines and lines
+/// starting with `#` (the provenance a reference file opens with) are
+/// skipped.
 pub fn read_csv_columns(file: &Path, columns: &[&str]) -> Result<Vec<Vec<f64>>, UsageError> {
     let bad = |what: String| UsageError(format!("{}: {what}", file.display()));
-    let mut reader = csv::ReaderBuilder::new()
-        .trim(csv::Trim::All)
-        .comment(Some(b'#'))
-        .from_path(file)
-        .map_err(|e| UsageError(format!("cannot read {}: {e}", file.display())))?;
-    let header: Vec<String> = reader
-        .headers()
-        .map_err(|e| bad(e.to_string()))?
-        .iter()
-        .map(str::to_string)
-        .collect();
+    let text = std::fs::read_to_string(file).map_err(|e| UsageError(format!("cannot read {}: {e}", file.display())))?;
+    let rows = table::rows(&text, true).map_err(|(line, e)| bad(format!("line {line}: {e}")))?;
+    let Some((header, body)) = rows.split_first() else {
+        return Err(bad("no header".into()));
+    };
     let index: Vec<usize> = columns
         .iter()
         .map(|c| {
-            header
-                .iter()
-                .position(|h| h == c)
-                .ok_or_else(|| bad(format!("missing column `{c}` (header: `{}`)", header.join(","))))
+            table::column(&header.cells, c).ok_or_else(|| {
+                let names: Vec<&str> = header.cells.iter().collect();
+                bad(format!("missing column `{c}` (header: `{}`)", names.join(",")))
+            })
         })
         .collect::<Result<_, _>>()?;
-    let mut rows = Vec::new();
-    for record in reader.records() {
-        let record = record.map_err(|e| bad(e.to_string()))?;
-        let line = record.position().map_or(0, |p| p.line());
-        let row: Vec<f64> = record
+    let mut out = Vec::with_capacity(body.len());
+    for row in body {
+        let values: Vec<f64> = row
+            .cells
             .iter()
             .map(|c| c.parse::<f64>().ok().filter(|v| v.is_finite()))
             .collect::<Option<_>>()
-            .filter(|r: &Vec<f64>| r.len() == header.len())
+            .filter(|r: &Vec<f64>| r.len() == header.cells.len())
             .ok_or_else(|| {
+                let cells: Vec<&str> = row.cells.iter().collect();
                 bad(format!(
-                    "line {line}: expected {} finite numbers, got `{}`",
-                    header.len(),
-                    record.iter().collect::<Vec<_>>().join(",")
+                    "line {}: expected {} finite numbers, got `{}`",
+                    row.line,
+                    header.cells.len(),
+                    cells.join(",")
                 ))
             })?;
-        rows.push(index.iter().map(|&i| row[i]).collect());
+        out.push(index.iter().map(|&i| values[i]).collect());
     }
-    Ok(rows)
+    Ok(out)
 }
 
 /// Two named columns as `(x, y)` pairs with `x` strictly increasing and at

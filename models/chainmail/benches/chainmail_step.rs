@@ -31,6 +31,7 @@ fn command(t: f64) -> DeviceCommand {
     DeviceCommand {
         insertion: 0.005 * (1.0 - (std::f64::consts::PI * t).cos()),
         rotation: t,
+        load: 0.0,
         base_pose: None,
     }
 }

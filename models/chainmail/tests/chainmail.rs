@@ -297,6 +297,7 @@ fn push_and_turn(s: &Scene, steps: usize) -> Vec<surgbench_core::Observation> {
         let cmd = DeviceCommand {
             insertion: 2e-4 * k as f64,
             rotation: 0.01 * k as f64,
+            load: 0.0,
             base_pose: None,
         };
         m.step(0.01, &cmd).unwrap();

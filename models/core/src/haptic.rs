@@ -170,11 +170,7 @@ impl Session {
                     .filter(|v| v.is_finite())
                     .ok_or_else(|| err(ln, &names[c], format!("`{}` is not a finite number", &cells[c])))
             };
-            let key = ControlKey {
-                t: num(ct)?,
-                insertion: num(ci)?,
-                rotation: num(cr)?,
-            };
+            let key = ControlKey::feed(num(ct)?, num(ci)?, num(cr)?);
             if let Some(prev) = keys.last().filter(|prev| !(key.t > prev.t)) {
                 return Err(err(
                     ln,

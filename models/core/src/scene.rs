@@ -248,7 +248,7 @@ pub struct TissueBody {
     /// Nodes held fixed.
     pub fixed_nodes: Vec<usize>,
     /// Nodes driven to a displacement (m) by the end of the control ramp;
-    /// the control timeline's `insertion` (0..1) scales it.
+    /// the control timeline's `load` (0..1) scales it.
     pub driven_nodes: Vec<(usize, Vec3)>,
     /// Nodes fixed along some axes only (`true` = that world component held
     /// at rest): rollers, symmetry planes, plane-strain ends.
@@ -256,7 +256,7 @@ pub struct TissueBody {
     /// Pressure loads (Pa) on boundary faces: the face's nodes in the order
     /// whose right-hand normal points out of the body; the pressure pushes
     /// against that normal (into the body) and follows the deformed face.
-    /// Scaled by the control timeline's `insertion` (0..1) like the driven
+    /// Scaled by the control timeline's `load` (0..1) like the driven
     /// displacements.
     pub pressure_faces: Vec<([usize; 3], f64)>,
     /// A rigid sphere pressed into the body (catheter tip, indenter), if
@@ -269,7 +269,7 @@ pub struct TissueBody {
 /// no boundary node of the body may enter it, and it pulls on nothing.
 ///
 /// Its centre moves along a straight line: at the control timeline's load
-/// factor `s` (`insertion`, 0..1, the factor that scales
+/// factor `s` (`load`, 0..1, the factor that scales
 /// [`TissueBody::driven_nodes`] and [`TissueBody::pressure_faces`]) the
 /// centre is `centre + s travel`. The force the body exerts on the sphere is
 /// reported as `Observation::hand_force`.
@@ -399,6 +399,10 @@ pub struct DeviceCommand {
     pub insertion: f64,
     /// Rotation of the base about its tangent since the start (rad).
     pub rotation: f64,
+    /// Tissue load factor (dimensionless, 0 at rest, 1 at full load): the
+    /// fraction of a tissue's driven displacements, pressures and indenter
+    /// travel applied now.
+    pub load: f64,
     /// Optional moving base pose (overrides the scene's base pose).
     pub base_pose: Option<Iso3>,
 }
@@ -408,6 +412,7 @@ impl Default for DeviceCommand {
         Self {
             insertion: 0.0,
             rotation: 0.0,
+            load: 0.0,
             base_pose: None,
         }
     }
@@ -422,6 +427,30 @@ pub struct ControlKey {
     pub insertion: f64,
     /// Base rotation at `t` (rad).
     pub rotation: f64,
+    /// Tissue load factor at `t` (dimensionless, see [`DeviceCommand::load`]).
+    pub load: f64,
+}
+
+impl ControlKey {
+    /// The hands of an instrument at `t` (s): `insertion` (m) and
+    /// `rotation` (rad), no tissue load.
+    pub fn feed(t: f64, insertion: f64, rotation: f64) -> Self {
+        Self {
+            t,
+            insertion,
+            rotation,
+            load: 0.0,
+        }
+    }
+    /// A tissue load factor `load` at `t` (s), no instrument motion.
+    pub fn load(t: f64, load: f64) -> Self {
+        Self {
+            t,
+            insertion: 0.0,
+            rotation: 0.0,
+            load,
+        }
+    }
 }
 
 /// Piecewise-linear control timeline; before the first key and after the
@@ -436,35 +465,34 @@ impl ControlTimeline {
     /// Hold a constant base rotation from `t = 0` (rad).
     pub fn hold_rotation(rotation: f64) -> Self {
         Self {
-            keys: vec![ControlKey {
-                t: 0.0,
-                insertion: 0.0,
-                rotation,
-            }],
+            keys: vec![ControlKey::feed(0.0, 0.0, rotation)],
         }
     }
 
     /// The command at time `t` (s).
     pub fn command_at(&self, t: f64) -> DeviceCommand {
         let k = &self.keys;
-        let (ins, rot) = match k.len() {
-            0 => (0.0, 0.0),
-            _ if t <= k[0].t => (k[0].insertion, k[0].rotation),
-            _ if t >= k[k.len() - 1].t => (k[k.len() - 1].insertion, k[k.len() - 1].rotation),
+        let at = |key: &ControlKey| DeviceCommand {
+            insertion: key.insertion,
+            rotation: key.rotation,
+            load: key.load,
+            base_pose: None,
+        };
+        match k.len() {
+            0 => DeviceCommand::default(),
+            _ if t <= k[0].t => at(&k[0]),
+            _ if t >= k[k.len() - 1].t => at(&k[k.len() - 1]),
             _ => {
                 let i = k.partition_point(|key| key.t <= t) - 1;
                 let (a, b) = (k[i], k[i + 1]);
                 let w = (t - a.t) / (b.t - a.t);
-                (
-                    a.insertion + w * (b.insertion - a.insertion),
-                    a.rotation + w * (b.rotation - a.rotation),
-                )
+                DeviceCommand {
+                    insertion: a.insertion + w * (b.insertion - a.insertion),
+                    rotation: a.rotation + w * (b.rotation - a.rotation),
+                    load: a.load + w * (b.load - a.load),
+                    base_pose: None,
+                }
             }
-        };
-        DeviceCommand {
-            insertion: ins,
-            rotation: rot,
-            base_pose: None,
         }
     }
 

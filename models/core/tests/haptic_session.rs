@@ -23,14 +23,7 @@ fn parses_plays_and_counts_rotation_commands() {
     assert_eq!(dev.command(9.0).insertion, 0.004);
     // Columns in another order, extra columns ignored.
     let t = Session::parse("s.csv", "rotation,fx,t,insertion\n0,1,0,0\n0.5,2,1,0.01\n").unwrap();
-    assert_eq!(
-        t.timeline.keys[1],
-        ControlKey {
-            t: 1.0,
-            insertion: 0.01,
-            rotation: 0.5
-        }
-    );
+    assert_eq!(t.timeline.keys[1], ControlKey::feed(1.0, 0.01, 0.5));
 }
 
 #[test]
@@ -94,18 +87,7 @@ fn recording_round_trips_bit_identically() {
 #[test]
 fn scripted_device_plays_its_timeline() {
     let tl = ControlTimeline {
-        keys: vec![
-            ControlKey {
-                t: 0.0,
-                insertion: 0.0,
-                rotation: 0.0,
-            },
-            ControlKey {
-                t: 2.0,
-                insertion: 0.04,
-                rotation: 1.0,
-            },
-        ],
+        keys: vec![ControlKey::feed(0.0, 0.0, 0.0), ControlKey::feed(2.0, 0.04, 1.0)],
     };
     let mut d = ScriptedDevice::new(tl.clone());
     assert_eq!(d.command(1.0), tl.command_at(1.0));

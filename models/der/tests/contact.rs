@@ -475,11 +475,7 @@ fn capstan_scene() -> Scene {
         friction_dynamic: 0.3,
         margin: r,
     };
-    let key = |t, insertion| ControlKey {
-        t,
-        insertion,
-        rotation: 0.0,
-    };
+    let key = |t, insertion| ControlKey::feed(t, insertion, 0.0);
     s.control = ControlTimeline {
         keys: vec![key(0.0, 0.0), key(1.0, 0.02)],
     };
@@ -511,11 +507,7 @@ fn capstan_start_scene(mu: f64) -> Scene {
         friction_dynamic: mu,
         margin: r,
     };
-    let key = |t, insertion| ControlKey {
-        t,
-        insertion,
-        rotation: 0.0,
-    };
+    let key = |t, insertion| ControlKey::feed(t, insertion, 0.0);
     s.control = ControlTimeline {
         keys: vec![key(0.0, 0.0), key(1.0, 0.02)],
     };

@@ -182,6 +182,7 @@ fn runs_are_deterministic() {
                 &DeviceCommand {
                     rotation: 0.01 * k as f64,
                     insertion: 1e-4 * k as f64,
+                    load: 0.0,
                     base_pose: None,
                 },
             )

@@ -78,7 +78,7 @@ fn quasi_static_scene_compresses_and_reports_hand_force() {
         .step(
             1e-3,
             &DeviceCommand {
-                insertion: 1.0,
+                load: 1.0,
                 ..Default::default()
             },
         )
@@ -258,7 +258,7 @@ fn energy_probe_forces_match_energy() {
     m.step(
         1e-3,
         &DeviceCommand {
-            insertion: 0.5,
+            load: 0.5,
             ..Default::default()
         },
     )
@@ -323,7 +323,7 @@ fn pressure_faces_and_rollers_reproduce_lame_through_the_factory() {
         .step(
             1e-3,
             &DeviceCommand {
-                insertion: 1.0,
+                load: 1.0,
                 ..Default::default()
             },
         )

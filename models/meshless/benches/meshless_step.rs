@@ -41,7 +41,7 @@ fn bench(c: &mut Criterion) {
             let f = Fidelity::parse_pairs(&["integrator=0", "dt=1e-5", &format!("pbd={pbd}")]).unwrap();
             let mut m = MeshlessTissue::new(&s, &f).unwrap();
             let cmd = DeviceCommand {
-                insertion: 0.1,
+                load: 0.1,
                 ..Default::default()
             };
             let id = BenchmarkId::new(if pbd == 1 { "explicit+pbd" } else { "explicit" }, n);

@@ -46,7 +46,7 @@ impl SphereContact {
         }
     }
 
-    /// Move the sphere to load factor `s` (the command's `insertion`).
+    /// Move the sphere to load factor `s` (the command's `load`).
     pub fn set_load(&mut self, s: f64) {
         self.centre = self.path.centre_at(s);
     }

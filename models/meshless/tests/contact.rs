@@ -191,7 +191,7 @@ fn penalty_shortfall_is_the_series_spring_one_over_kappa() {
     }
 }
 
-/// The sphere's centre follows `SphereIndenter::centre_at(insertion)`: a
+/// The sphere's centre follows `SphereIndenter::centre_at(load)`: a
 /// sphere that has not reached the block yet leaves it at rest with no
 /// force, and the hand force is the force on the sphere (pushing it back,
 /// +z here).
@@ -200,7 +200,7 @@ fn the_sphere_moves_with_the_command_and_the_body_pushes_it_back() {
     let scene = platen_scene(2, true);
     let mut m = MeshlessTissue::new(&scene, &Fidelity::default()).unwrap();
     let cmd = |s: f64| DeviceCommand {
-        insertion: s,
+        load: s,
         ..Default::default()
     };
     // Insertion 0: the sphere touches the top face (gap 0 up to the rounding
@@ -212,7 +212,7 @@ fn the_sphere_moves_with_the_command_and_the_body_pushes_it_back() {
     m.step(0.01, &cmd(1.0)).unwrap();
     let full = m.observe().hand_force;
     assert!(half.z > 0.0 && full.z > half.z, "half {half:?}, full {full:?}");
-    assert!(zero.norm() <= 1e-6 * full.z, "force at insertion 0: {zero:?}");
+    assert!(zero.norm() <= 1e-6 * full.z, "force at load 0: {zero:?}");
     // Linear to within the StVK nonlinearity (~1.5 eps = 1.5 %) and the
     // penalty's own (a shortfall that grows with the force: same ratio).
     let ratio = full.z / half.z;

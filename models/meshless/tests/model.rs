@@ -229,7 +229,7 @@ fn energy_probe_forces_match_finite_differences_with_gravity() {
     m.step(
         0.01,
         &DeviceCommand {
-            insertion: 1.0,
+            load: 1.0,
             ..Default::default()
         },
     )

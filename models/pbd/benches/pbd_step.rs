@@ -55,6 +55,7 @@ fn cmd(k: usize) -> DeviceCommand {
     DeviceCommand {
         insertion: 1e-5 * k as f64,
         rotation: 1e-3 * k as f64,
+        load: 0.0,
         base_pose: None,
     }
 }
@@ -102,7 +103,7 @@ fn tissue_model(hash_box: f64, threads: usize) -> Box<dyn Model> {
         m.step(
             1e-3,
             &DeviceCommand {
-                insertion: k as f64 / 20.0,
+                load: k as f64 / 20.0,
                 ..Default::default()
             },
         )
@@ -137,7 +138,7 @@ fn bench(c: &mut Criterion) {
     ] {
         let mut m = tissue_model(d, threads);
         let full = DeviceCommand {
-            insertion: 1.0,
+            load: 1.0,
             ..Default::default()
         };
         g.bench_function(name, |b| b.iter(|| black_box(m.step(1e-3, &full).unwrap())));

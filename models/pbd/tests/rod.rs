@@ -260,6 +260,7 @@ fn reruns_are_bit_identical() {
     let cmd = |k: usize| DeviceCommand {
         insertion: 1e-4 * k as f64,
         rotation: 0.01 * k as f64,
+        load: 0.0,
         base_pose: None,
     };
     let f = fid(20, 5, 2, 1e-3, 10.0);
@@ -283,6 +284,7 @@ fn rigid_motion_of_the_scene_moves_the_answer_rigidly() {
     let cmd = |k: usize| DeviceCommand {
         insertion: 1e-4 * k as f64,
         rotation: 0.02 * k as f64,
+        load: 0.0,
         base_pose: None,
     };
     let (a, _) = run(&scene, &f, 60, cmd);
@@ -352,6 +354,7 @@ fn sliding_rod_feels_coulomb_friction() {
     let cmd = move |k: usize| DeviceCommand {
         insertion: v * 1e-3 * k as f64,
         rotation: 0.0,
+        load: 0.0,
         base_pose: None,
     };
     // No velocity damping: it would act as a drag c m v on the moving rod.
@@ -483,6 +486,7 @@ fn wire_on_a_tube_axis_gives_the_same_answer_in_a_rotated_frame() {
     let cmd = |k: usize| DeviceCommand {
         insertion: 0.02 * 1e-3 * k as f64,
         rotation: 0.0,
+        load: 0.0,
         base_pose: None,
     };
     let (a, _) = run(&scene, &f, 10, cmd);
@@ -592,6 +596,7 @@ fn capstan_wire_fits_its_tube_when_the_margin_is_its_radius() {
     let cmd = |k: usize| DeviceCommand {
         insertion: 0.02 * 1e-3 * k as f64,
         rotation: 0.0,
+        load: 0.0,
         base_pose: None,
     };
     let (o, _) = run(&scene, &fid(40, 20, 4, 1e-3, 0.0), 20, cmd);

@@ -269,6 +269,7 @@ fn direct_reruns_are_bit_identical_with_contact_and_friction() {
             let cmd = DeviceCommand {
                 insertion: 1e-5 * k as f64,
                 rotation: 1e-2 * k as f64,
+                load: 0.0,
                 base_pose: None,
             };
             m.step(1e-3, &cmd).unwrap_or_else(|e| panic!("step {k}: {e}"));

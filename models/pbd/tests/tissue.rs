@@ -60,7 +60,7 @@ fn run(scene: &Scene, f: &Fidelity, steps: usize, ramp: usize) -> (Observation, 
     let dt = f.dt.unwrap();
     for k in 1..=steps {
         let cmd = DeviceCommand {
-            insertion: (k as f64 / ramp as f64).min(1.0),
+            load: (k as f64 / ramp as f64).min(1.0),
             ..Default::default()
         };
         m.step(dt, &cmd).unwrap_or_else(|e| panic!("step {k}: {e}"));

@@ -49,7 +49,7 @@ fn body(scene: &mut Scene) -> &mut TissueBody {
 
 fn cmd(s: f64) -> DeviceCommand {
     DeviceCommand {
-        insertion: s,
+        load: s,
         ..Default::default()
     }
 }

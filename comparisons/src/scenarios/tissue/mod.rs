@@ -6,7 +6,7 @@
 //! Shared conventions (SI units: m, kg, s, N, Pa, rad):
 //! * every scene holds exactly one [`TissueBody`], no gravity, and is static:
 //!   the loads (driven displacements, pressures) follow the control
-//!   timeline's `insertion`, a load factor ramped 0 -> 1 over `ramp_time` by
+//!   timeline's `load` factor, ramped 0 -> 1 over `ramp_time` by
 //!   a smooth cosine (`(1 - cos(pi t / T)) / 2`, sampled at 16 keys, so the
 //!   loading velocity starts and ends near zero and dynamic models are not
 //!   kicked), then held; `Scene::settle` asks for equilibrium (every node
@@ -121,18 +121,19 @@ pub fn mesh_level(scenario: &str, fidelity: &Fidelity) -> Result<usize, UsageErr
 }
 
 /// Smooth load ramp `s(t) = (1 - cos(pi t / ramp)) / 2` for `t <= ramp`,
-/// then `s = 1`, as a piecewise-linear timeline (16 segments) of the
-/// `insertion` channel (the tissue load factor).
+/// then `s = 1`, as a piecewise-linear timeline (16 segments) of the tissue
+/// load factor ([`surgbench_core::DeviceCommand::load`]).
 pub fn load_ramp(ramp: f64) -> ControlTimeline {
     const N: usize = 16;
     let mut keys: Vec<ControlKey> = (0..=N)
-        .map(|k| ControlKey {
-            t: ramp * k as f64 / N as f64,
-            insertion: 0.5 * (1.0 - (PI * k as f64 / N as f64).cos()),
-            rotation: 0.0,
+        .map(|k| {
+            ControlKey::load(
+                ramp * k as f64 / N as f64,
+                0.5 * (1.0 - (PI * k as f64 / N as f64).cos()),
+            )
         })
         .collect();
-    keys[N].insertion = 1.0;
+    keys[N].load = 1.0;
     ControlTimeline { keys }
 }
 
@@ -231,7 +232,7 @@ fn rollers(mesh: &TetMesh, fixed: &[usize], held: impl Fn(&Vec3) -> [bool; 3]) -
 /// Where the scene's sphere is at time `t` (m): its path at the control
 /// timeline's load factor.
 fn indenter_centre(scene: &Scene, t: f64) -> Option<Vec3> {
-    let s = scene.control.command_at(t).insertion;
+    let s = scene.control.command_at(t).load;
     scene.tissues().next()?.indenter.map(|i| i.centre_at(s))
 }
 

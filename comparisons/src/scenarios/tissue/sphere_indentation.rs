@@ -154,7 +154,7 @@ impl ForceCurve for SphereRun {
         Some(m)
     }
     fn curve_point(&self, scene: &Scene, obs: &Observation) -> Option<(f64, f64)> {
-        let s = scene.control.command_at(obs.time).insertion;
+        let s = scene.control.command_at(obs.time).load;
         // Hertz along the ramp: F(s) = F_ref s^(3/2) at depth s delta.
         let want = self.force_ref * s.max(0.0).powf(1.5);
         Some((Self::force(obs), want))

@@ -141,7 +141,7 @@ impl ForceCurve for WallSphereRun {
         Some(m)
     }
     fn curve_point(&self, scene: &Scene, obs: &Observation) -> Option<(f64, f64)> {
-        let s = scene.control.command_at(obs.time).insertion;
+        let s = scene.control.command_at(obs.time).load;
         // The reference at this step's depth; none below its first row.
         let want = self.reference.force(s * self.depth, self.e_scale)?;
         Some((Self::force(obs), want))

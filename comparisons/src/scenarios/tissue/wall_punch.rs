@@ -129,7 +129,7 @@ impl ForceCurve for PunchRun {
         Some(m)
     }
     fn curve_point(&self, scene: &Scene, obs: &Observation) -> Option<(f64, f64)> {
-        let s = scene.control.command_at(obs.time).insertion;
+        let s = scene.control.command_at(obs.time).load;
         // Linear reference: F(t) = F_ref s(t) at load factor s(t).
         let want = self.force_ref * s;
         Some((Self::force(obs), want))

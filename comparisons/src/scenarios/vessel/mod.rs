@@ -360,7 +360,7 @@ fn timeline(keys: &[(f64, f64, f64)]) -> ControlTimeline {
     ControlTimeline {
         keys: keys
             .iter()
-            .map(|&(t, insertion, rotation)| ControlKey { t, insertion, rotation })
+            .map(|&(t, insertion, rotation)| ControlKey::feed(t, insertion, rotation))
             .collect(),
     }
 }

@@ -560,6 +560,7 @@ fn interpolate_command(c0: &DeviceCommand, c1: &DeviceCommand, w: f64, base: &Is
     DeviceCommand {
         insertion: c0.insertion + w * (c1.insertion - c0.insertion),
         rotation: c0.rotation + w * (c1.rotation - c0.rotation),
+        load: c0.load + w * (c1.load - c0.load),
         base_pose,
     }
 }

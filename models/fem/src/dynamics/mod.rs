@@ -725,7 +725,7 @@ impl FemModel {
 
 impl Model for FemModel {
     fn step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
-        self.advance(dt, cmd.insertion)
+        self.advance(dt, cmd.load)
     }
 
     /// Tissue nodes, volume error, inverted count, energies, and

@@ -15,20 +15,20 @@ impl Model for MeshlessTissue {
         }
         let n = self.x.len();
         let xn = self.x.clone();
-        self.load_scale = cmd.insertion;
+        self.load_scale = cmd.load;
         if let Some(c) = &mut self.contact {
-            c.set_load(cmd.insertion);
+            c.set_load(cmd.load);
         }
         let stats = match self.set.integrator {
             Integrator::SymplecticEuler => {
-                self.explicit_step(dt, cmd.insertion);
+                self.explicit_step(dt, cmd.load);
                 StepStats {
                     iterations: 0,
                     residual: 0.0,
                     converged: true,
                 }
             }
-            Integrator::BackwardEuler | Integrator::QuasiStatic => self.implicit_step(&xn, dt, cmd.insertion)?,
+            Integrator::BackwardEuler | Integrator::QuasiStatic => self.implicit_step(&xn, dt, cmd.load)?,
         };
         if let Some(pbd) = &self.pbd {
             let w: Vec<f64> = (0..n)
@@ -151,8 +151,8 @@ impl EnergyProbe for MeshlessTissue {
 impl MeshlessTissue {
     /// Symplectic Euler step of length `dt` (s): velocities from the forces
     /// at the current positions, then positions; the held nodes follow the
-    /// command `insertion`.
-    fn explicit_step(&mut self, dt: f64, insertion: f64) {
+    /// command's `load`.
+    fn explicit_step(&mut self, dt: f64, load: f64) {
         let n = self.x.len();
         let x = std::mem::take(&mut self.x);
         if !self.forces_at_x {
@@ -167,14 +167,14 @@ impl MeshlessTissue {
             self.x[i] += self.v[i] * dt;
         }
         let mut x = std::mem::take(&mut self.x);
-        self.apply_targets(&mut x, insertion);
+        self.apply_targets(&mut x, load);
         self.x = x;
     }
 
     /// Backward Euler (or quasi-static) step from `xn` of length `dt` (s):
     /// Newton-CG on the step's objective with the held nodes at the command
-    /// `insertion`.
-    fn implicit_step(&mut self, xn: &[Vec3], dt: f64, insertion: f64) -> Result<StepStats, SimError> {
+    /// `load`.
+    fn implicit_step(&mut self, xn: &[Vec3], dt: f64, load: f64) -> Result<StepStats, SimError> {
         let n = self.x.len();
         let dynamic = self.set.integrator == Integrator::BackwardEuler;
         let xt: Vec<Vec3> = if dynamic {
@@ -183,7 +183,7 @@ impl MeshlessTissue {
             Vec::new()
         };
         let mut x = std::mem::take(&mut self.x);
-        self.apply_targets(&mut x, insertion);
+        self.apply_targets(&mut x, load);
         self.x = x;
         let (a_in, a_damp) = if dynamic {
             (1.0 / (dt * dt), self.damping / dt)

@@ -41,7 +41,7 @@
 //! differed by 4e-6 of itself between rigidly moved frames.)
 //!
 //! **Boundary conditions.** Fixed nodes stay at rest, driven nodes sit at
-//! `X + insertion d`, rollers (`partial_fixed`) hold the flagged world
+//! `X + load d`, rollers (`partial_fixed`) hold the flagged world
 //! components at rest.
 //!
 //! **Pressure loads** (`TissueBody::pressure_faces`) act on the scene's
@@ -65,7 +65,7 @@
 //! E* sqrt(A_i)` ([`crate::contact`], Wriggers 2006 eq. 6.47; the rule of the
 //! `fem` model), is added to the Newton objective, its gradient and its
 //! Hessian-vector product (exact), with the centre `c` at the command's
-//! load factor, `SphereIndenter::centre_at(insertion)`. Backward Euler and
+//! load factor, `SphereIndenter::centre_at(load)`. Backward Euler and
 //! quasi-static only: the explicit integrator and the PBD corrections are
 //! refused with a reason when the scene has a sphere.
 //!
@@ -432,7 +432,7 @@ pub struct MeshlessTissue {
     mass: Vec<f64>,
     /// 1 where a component moves, 0 where it is held.
     axis_free: Vec<Vec3>,
-    /// Held components' positions at zero insertion (m).
+    /// Held components' positions at zero load (m).
     driven: Vec<(usize, Vec3)>,
     gravity: Vec3,
     damping: f64,
@@ -455,7 +455,7 @@ pub struct MeshlessTissue {
     /// Whether `forces` holds the internal forces at the current `x`.
     forces_at_x: bool,
     pressure: PressureLoad,
-    /// Load factor of the pressure this step (the command's `insertion`).
+    /// Load factor of the pressure this step (the command's `load`).
     load_scale: f64,
     /// Pressure nodal forces at the last gradient evaluation (N).
     pforces: Vec<Vec3>,

@@ -5,14 +5,14 @@ use super::*;
 use surgbench_core::Vec3;
 
 impl MeshlessTissue {
-    /// Set the held components to their targets at `insertion`.
-    pub(super) fn apply_targets(&self, x: &mut [Vec3], insertion: f64) {
+    /// Set the held components to their targets at load factor `load`.
+    pub(super) fn apply_targets(&self, x: &mut [Vec3], load: f64) {
         for i in 0..x.len() {
             let h = Vec3::repeat(1.0) - self.axis_free[i];
             x[i] = x[i].component_mul(&self.axis_free[i]) + self.el.rest[i].component_mul(&h);
         }
         for &(i, d) in &self.driven {
-            x[i] = self.el.rest[i] + d * insertion;
+            x[i] = self.el.rest[i] + d * load;
         }
     }
 

@@ -77,17 +77,6 @@ pub fn compression_scene(l: f64, n: usize, strain: f64, nu: f64, ramp_time: f64)
 /// Load ramp from 0 at t = 0 to 1 at `ramp` s, then held.
 pub fn ramp(ramp: f64) -> ControlTimeline {
     ControlTimeline {
-        keys: vec![
-            ControlKey {
-                t: 0.0,
-                insertion: 0.0,
-                rotation: 0.0,
-            },
-            ControlKey {
-                t: ramp,
-                insertion: 1.0,
-                rotation: 0.0,
-            },
-        ],
+        keys: vec![ControlKey::load(0.0, 0.0), ControlKey::load(ramp, 1.0)],
     }
 }

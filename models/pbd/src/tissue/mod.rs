@@ -28,7 +28,7 @@
 //!   and `dx = W n dlambda`. Projected after each iteration's colour passes,
 //!   on the caller's thread in candidate order (so bit-identical for any
 //!   thread count), with the centre `c` at the substep's load factor
-//!   (`SphereIndenter::centre_at(insertion)`).
+//!   (`SphereIndenter::centre_at(load)`).
 //!
 //! **Material mapping** (stated, approximate): with Lamé parameters
 //! `mu = E / (2 (1 + nu))`, `lambda = E nu / ((1 + nu)(1 - 2 nu))`, each tet
@@ -727,14 +727,14 @@ impl Model for PbdTissue {
         let a = self.last_ins;
         for s in 0..ns {
             let f = (s + 1) as f64 / ns as f64;
-            let ins = a + f * (cmd.insertion - a);
+            let ins = a + f * (cmd.load - a);
             if self.hash.is_some() {
                 self.cur_ins = ins;
                 self.update_active();
             }
             self.substep(h, ins);
         }
-        self.last_ins = cmd.insertion;
+        self.last_ins = cmd.load;
         self.time += dt;
         if let Some(reason) = self.check_state() {
             return Err(SimError::Diverged { t: self.time, reason });
