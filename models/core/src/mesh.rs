@@ -72,6 +72,7 @@ pub fn tet_volume_of(p: &[Vec3; 4]) -> f64 {
 /// Gradients of [`tet_volume`] with respect to `p1..p4` (m^2):
 /// `(1/6)(p4-p2) x (p3-p2)`, `(1/6)(p3-p1) x (p4-p1)`,
 /// `(1/6)(p4-p1) x (p2-p1)`, `(1/6)(p2-p1) x (p3-p1)`.
+#[inline]
 pub fn tet_volume_gradients(p: &[Vec3; 4]) -> [Vec3; 4] {
     let s = 1.0 / 6.0;
     [
