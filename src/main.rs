@@ -198,8 +198,12 @@ struct GateWorkloadArgs {
 
 /// Failure kinds mapped to exit codes.
 enum Failure {
+    /// Exit 2.
     Usage(String),
+    /// Exit 1.
     Runtime(String),
+    /// Stopped by this signal: exit 128 + signal.
+    Interrupted(String, i32),
 }
 
 impl From<UsageError> for Failure {
@@ -311,6 +315,10 @@ fn main() -> ExitCode {
             eprintln!("error: {m}");
             ExitCode::from(1)
         }
+        Err(Failure::Interrupted(m, sig)) => {
+            eprintln!("error: {m}");
+            ExitCode::from(surgbench_comparisons::interrupt::exit_code(sig))
+        }
     }
 }
 
@@ -333,6 +341,10 @@ fn cmd_run(a: RunArgs) -> Result<(), Failure> {
         return Err(Failure::Usage(format!("--timeout must be > 0 s, got {t}")));
     }
     let c = Comparison::load(&find_comparison(&a.comparison)?)?;
+    // From here on a SIGINT/SIGTERM stops the running child and removes the
+    // temporary report folder instead of orphaning both.
+    surgbench_comparisons::interrupt::install()
+        .map_err(|e| Failure::Runtime(format!("cannot install signal handlers: {e}")))?;
     let out = a.out.unwrap_or_else(|| project_root().join("reports/out/latest"));
     let opts = BatchOptions {
         quick: a.quick,
@@ -349,6 +361,7 @@ fn cmd_run(a: RunArgs) -> Result<(), Failure> {
     let rows = batch::run_comparison(&c, &opts).map_err(|e| match e {
         BatchError::Usage(u) => Failure::Usage(u.0),
         BatchError::Io(s) => Failure::Runtime(s),
+        e @ BatchError::Interrupted(sig) => Failure::Interrupted(e.to_string(), sig),
     })?;
     if !a.quiet {
         let count = |s: Status| rows.iter().filter(|r| r.status == s).count();
@@ -382,12 +395,19 @@ fn cmd_run_one(a: &RunOneArgs) -> Result<(), Failure> {
     let out = &a.out;
     let tmp =
         batch::temp_sibling(out).map_err(|e| Failure::Runtime(format!("cannot create {}: {e}", out.display())))?;
-    summary
+    let written = summary
         .write_files(&tmp)
         .and_then(|()| outdir::write_marker(&tmp))
-        .map_err(|e| Failure::Runtime(format!("cannot write run files: {e}")))?;
-    batch::replace_dir(&tmp, out)
-        .map_err(|e| Failure::Runtime(format!("cannot move run into {}: {e}", out.display())))?;
+        .map_err(|e| Failure::Runtime(format!("cannot write run files: {e}")))
+        .and_then(|()| {
+            batch::replace_dir(&tmp, out)
+                .map_err(|e| Failure::Runtime(format!("cannot move run into {}: {e}", out.display())))
+        });
+    if written.is_err() {
+        // Nothing half-written stays beside --out.
+        let _ = std::fs::remove_dir_all(&tmp);
+    }
+    written?;
     if !a.quiet {
         print_run(&summary, out);
     }
