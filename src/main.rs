@@ -514,10 +514,23 @@ fn cmd_haptic(a: &HapticArgs) -> Result<(), Failure> {
         return Err(Failure::Usage("--record needs --replay".into()));
     }
     let resolved = a.spec.resolve()?;
-    let m = resolved.build()?;
-    let report = match &a.replay {
+    // A replayed session drives the scene instead of its own timeline: it
+    // must keep within the same limits (how far the wire may be fed) that
+    // the scenario checks its own timeline against, before anything runs.
+    let session = match &a.replay {
         Some(path) => {
             let session = surgbench_core::haptic::Session::load(path).map_err(|e| Failure::Usage(e.to_string()))?;
+            resolved
+                .run
+                .check_control(&session.timeline)
+                .map_err(|e| Failure::Usage(format!("replay {}: {e}", path.display())))?;
+            Some(session)
+        }
+        None => None,
+    };
+    let m = resolved.build()?;
+    let report = match session {
+        Some(session) => {
             let mut dev = surgbench_core::haptic::ReplayDevice::new(session);
             let r = run_haptic_loop(m, &mut dev, rate, duration)?;
             if let Some(out) = &a.record {
