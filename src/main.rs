@@ -1,8 +1,10 @@
 //! `surgbench`: run the standard comparison, one run, or re-render a report.
 //!
 //! Exit codes: 0 success, 1 a run or write failed at runtime, 2 bad usage
-//! (unknown scenario/model/parameter, out-of-range value, malformed file);
-//! on exit 2 nothing is written.
+//! (unknown scenario/model/parameter, out-of-range value, malformed file,
+//! more steps than [`surgbench_comparisons::runner::MAX_STEPS`]); on exit 2
+//! nothing is written. `run` interrupted by SIGINT or SIGTERM stops its
+//! child, removes its temporary folder and exits 130 or 143.
 
 use clap::{Args, Parser, Subcommand};
 
