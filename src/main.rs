@@ -1,8 +1,10 @@
 //! `surgbench`: run the standard comparison, one run, or re-render a report.
 //!
 //! Exit codes: 0 success, 1 a run or write failed at runtime, 2 bad usage
-//! (unknown scenario/model/parameter, out-of-range value, malformed file);
-//! on exit 2 nothing is written.
+//! (unknown scenario/model/parameter, out-of-range value, malformed file,
+//! more steps than [`surgbench_comparisons::runner::MAX_STEPS`]); on exit 2
+//! nothing is written. `run` interrupted by SIGINT or SIGTERM stops its
+//! child, removes its temporary folder and exits 130 or 143.
 
 use clap::{Args, Parser, Subcommand};
 
@@ -198,8 +200,12 @@ struct GateWorkloadArgs {
 
 /// Failure kinds mapped to exit codes.
 enum Failure {
+    /// Exit 2.
     Usage(String),
+    /// Exit 1.
     Runtime(String),
+    /// Stopped by this signal: exit 128 + signal.
+    Interrupted(String, i32),
 }
 
 impl From<UsageError> for Failure {
@@ -311,6 +317,10 @@ fn main() -> ExitCode {
             eprintln!("error: {m}");
             ExitCode::from(1)
         }
+        Err(Failure::Interrupted(m, sig)) => {
+            eprintln!("error: {m}");
+            ExitCode::from(surgbench_comparisons::interrupt::exit_code(sig))
+        }
     }
 }
 
@@ -333,6 +343,10 @@ fn cmd_run(a: RunArgs) -> Result<(), Failure> {
         return Err(Failure::Usage(format!("--timeout must be > 0 s, got {t}")));
     }
     let c = Comparison::load(&find_comparison(&a.comparison)?)?;
+    // From here on a SIGINT/SIGTERM stops the running child and removes the
+    // temporary report folder instead of orphaning both.
+    surgbench_comparisons::interrupt::install()
+        .map_err(|e| Failure::Runtime(format!("cannot install signal handlers: {e}")))?;
     let out = a.out.unwrap_or_else(|| project_root().join("reports/out/latest"));
     let opts = BatchOptions {
         quick: a.quick,
@@ -349,6 +363,7 @@ fn cmd_run(a: RunArgs) -> Result<(), Failure> {
     let rows = batch::run_comparison(&c, &opts).map_err(|e| match e {
         BatchError::Usage(u) => Failure::Usage(u.0),
         BatchError::Io(s) => Failure::Runtime(s),
+        e @ BatchError::Interrupted(sig) => Failure::Interrupted(e.to_string(), sig),
     })?;
     if !a.quiet {
         let count = |s: Status| rows.iter().filter(|r| r.status == s).count();
@@ -382,12 +397,19 @@ fn cmd_run_one(a: &RunOneArgs) -> Result<(), Failure> {
     let out = &a.out;
     let tmp =
         batch::temp_sibling(out).map_err(|e| Failure::Runtime(format!("cannot create {}: {e}", out.display())))?;
-    summary
+    let written = summary
         .write_files(&tmp)
         .and_then(|()| outdir::write_marker(&tmp))
-        .map_err(|e| Failure::Runtime(format!("cannot write run files: {e}")))?;
-    batch::replace_dir(&tmp, out)
-        .map_err(|e| Failure::Runtime(format!("cannot move run into {}: {e}", out.display())))?;
+        .map_err(|e| Failure::Runtime(format!("cannot write run files: {e}")))
+        .and_then(|()| {
+            batch::replace_dir(&tmp, out)
+                .map_err(|e| Failure::Runtime(format!("cannot move run into {}: {e}", out.display())))
+        });
+    if written.is_err() {
+        // Nothing half-written stays beside --out.
+        let _ = std::fs::remove_dir_all(&tmp);
+    }
+    written?;
     if !a.quiet {
         print_run(&summary, out);
     }
@@ -494,10 +516,23 @@ fn cmd_haptic(a: &HapticArgs) -> Result<(), Failure> {
         return Err(Failure::Usage("--record needs --replay".into()));
     }
     let resolved = a.spec.resolve()?;
-    let m = resolved.build()?;
-    let report = match &a.replay {
+    // A replayed session drives the scene instead of its own timeline: it
+    // must keep within the same limits (how far the wire may be fed) that
+    // the scenario checks its own timeline against, before anything runs.
+    let session = match &a.replay {
         Some(path) => {
             let session = surgbench_core::haptic::Session::load(path).map_err(|e| Failure::Usage(e.to_string()))?;
+            resolved
+                .run
+                .check_control(&session.timeline)
+                .map_err(|e| Failure::Usage(format!("replay {}: {e}", path.display())))?;
+            Some(session)
+        }
+        None => None,
+    };
+    let m = resolved.build()?;
+    let report = match session {
+        Some(session) => {
             let mut dev = surgbench_core::haptic::ReplayDevice::new(session);
             let r = run_haptic_loop(m, &mut dev, rate, duration)?;
             if let Some(out) = &a.record {

@@ -3,6 +3,11 @@
 //! recorded as failed (with its message and time) and the comparison goes
 //! on. Results are written to a temporary folder and renamed into place at
 //! the end: a failed or interrupted run leaves earlier reports intact.
+//!
+//! With [`crate::interrupt::install`] called first, a SIGINT or SIGTERM to
+//! the batch kills the running child, waits for it, removes the temporary
+//! folder and returns [`BatchError::Interrupted`]: no process and no
+//! temporary folder outlive the batch, and the earlier report is untouched.
 
 use crate::comparison::{Comparison, HapticJob, Job};
 use crate::registry;
@@ -44,6 +49,9 @@ pub enum BatchError {
     Usage(crate::UsageError),
     /// Writing the report failed; the previous report is intact.
     Io(String),
+    /// SIGINT or SIGTERM (the number) arrived: the running child was
+    /// killed, the temporary folder removed, the previous report is intact.
+    Interrupted(i32),
 }
 
 impl std::fmt::Display for BatchError {
@@ -51,6 +59,10 @@ impl std::fmt::Display for BatchError {
         match self {
             BatchError::Usage(u) => u.fmt(f),
             BatchError::Io(s) => f.write_str(s),
+            BatchError::Interrupted(sig) => write!(
+                f,
+                "interrupted by signal {sig}: the running job was stopped and nothing was written (any earlier report is unchanged)"
+            ),
         }
     }
 }
@@ -134,6 +146,8 @@ enum ChildEnd {
     Success,
     /// Could not start, crashed, or was killed at the limit.
     Failed(Status, String),
+    /// Killed because the batch got this signal; the caller stops.
+    Interrupted(i32),
 }
 
 /// Spawn `cmd` with stderr to `err_path`, wait up to `timeout` s, and say
@@ -141,11 +155,12 @@ enum ChildEnd {
 fn run_child(cmd: Command, err_path: &Path, timeout: f64, opts: &BatchOptions) -> ChildEnd {
     match spawn_with_limit(cmd, err_path, timeout) {
         Err(e) => ChildEnd::Failed(Status::Failed, format!("could not start {}: {e}", opts.exe.display())),
-        Ok((None, elapsed)) => {
+        Ok((Waited::TimedOut, elapsed)) => {
             ChildEnd::Failed(Status::Timeout, format!("killed after {elapsed:.1} s wall-clock limit"))
         }
-        Ok((Some(s), _)) if s.success() => ChildEnd::Success,
-        Ok((Some(s), elapsed)) => ChildEnd::Failed(
+        Ok((Waited::Interrupted(sig), _)) => ChildEnd::Interrupted(sig),
+        Ok((Waited::Exited(s), _)) if s.success() => ChildEnd::Success,
+        Ok((Waited::Exited(s), elapsed)) => ChildEnd::Failed(
             Status::Failed,
             format!(
                 "{} after {elapsed:.2} s: {}",
@@ -172,13 +187,21 @@ fn run_dir_of(job: &Job) -> PathBuf {
         .join(slug(&job.fidelity.to_string()))
 }
 
-/// Run one job in a child process; returns its row.
-fn run_job(c: &Comparison, job: &Job, runs: &Path, opts: &BatchOptions, repeats: usize, timeout: f64) -> ResultRow {
+/// Run one job in a child process; returns its row, or the signal that
+/// interrupted it.
+fn run_job(
+    c: &Comparison,
+    job: &Job,
+    runs: &Path,
+    opts: &BatchOptions,
+    repeats: usize,
+    timeout: f64,
+) -> Result<ResultRow, BatchError> {
     let mut row = base_row(c, job);
     if let Some(reason) = &job.unsupported {
         row.status = Status::Unsupported;
         row.reason = reason.clone();
-        return row;
+        return Ok(row);
     }
     let rel = run_dir_of(job);
     let dir = runs.parent().expect("runs has a parent").join(&rel);
@@ -193,7 +216,12 @@ fn run_job(c: &Comparison, job: &Job, runs: &Path, opts: &BatchOptions, repeats:
         .arg(repeats.to_string())
         .arg("--quiet");
     match run_child(cmd, &err_path, timeout, opts) {
-        ChildEnd::Failed(status, reason) => (row.status, row.reason) = (status, reason),
+        ChildEnd::Interrupted(sig) => return Err(BatchError::Interrupted(sig)),
+        ChildEnd::Failed(status, reason) => {
+            (row.status, row.reason) = (status, reason);
+            // A child killed while writing leaves its temporary folder.
+            remove_temp_siblings(&dir);
+        }
         ChildEnd::Success => match RunSummary::read(&dir.join("summary.json")) {
             Ok(s) => row = row.with_summary(s, rel.to_string_lossy().into_owned()),
             Err(_) => {
@@ -205,7 +233,7 @@ fn run_job(c: &Comparison, job: &Job, runs: &Path, opts: &BatchOptions, repeats:
     if matches!(row.status, Status::Ok | Status::Unstable | Status::Unsupported) {
         let _ = std::fs::remove_file(&err_path);
     }
-    row
+    Ok(row)
 }
 
 /// `surgbench <sub> --model M --scenario S --param .. --fidelity ..` with the
@@ -230,13 +258,21 @@ fn child_command(
     cmd
 }
 
-/// Spawn `cmd` with stderr to `err_path`, wait up to `timeout` s; `None`
-/// means it was killed at the limit (or could not be waited on).
-fn spawn_with_limit(
-    mut cmd: Command,
-    err_path: &Path,
-    timeout: f64,
-) -> Result<(Option<std::process::ExitStatus>, f64), std::io::Error> {
+/// How the wait for a child ended.
+enum Waited {
+    /// It exited (or was killed by someone else) with this status.
+    Exited(std::process::ExitStatus),
+    /// It was killed at the wall-clock limit (or could not be waited on).
+    TimedOut,
+    /// It was killed because the batch got this signal.
+    Interrupted(i32),
+}
+
+/// Spawn `cmd` with stderr to `err_path` and wait up to `timeout` s, or
+/// until a SIGINT/SIGTERM reaches the batch ([`crate::interrupt`]); a child
+/// that is not done by then is killed and waited for, so none outlives the
+/// wait. Returns how it ended and the wall time (s).
+fn spawn_with_limit(mut cmd: Command, err_path: &Path, timeout: f64) -> Result<(Waited, f64), std::io::Error> {
     cmd.env("RUST_BACKTRACE", "0")
         .stdin(Stdio::null())
         .stdout(Stdio::null());
@@ -246,16 +282,25 @@ fn spawn_with_limit(
     };
     let start = Instant::now();
     let mut child = cmd.spawn()?;
+    // Kill and reap: no child outlives the wait.
+    fn stop(child: &mut std::process::Child, why: Waited) -> Waited {
+        let _ = child.kill();
+        let _ = child.wait();
+        why
+    }
     let status = loop {
         match child.try_wait() {
-            Ok(Some(s)) => break Some(s),
-            Ok(None) if start.elapsed().as_secs_f64() > timeout => {
-                let _ = child.kill();
-                let _ = child.wait();
-                break None;
+            Ok(Some(s)) => break Waited::Exited(s),
+            Ok(None) => {
+                if let Some(sig) = crate::interrupt::pending() {
+                    break stop(&mut child, Waited::Interrupted(sig));
+                }
+                if start.elapsed().as_secs_f64() > timeout {
+                    break stop(&mut child, Waited::TimedOut);
+                }
+                std::thread::sleep(Duration::from_millis(5));
             }
-            Ok(None) => std::thread::sleep(Duration::from_millis(5)),
-            Err(_) => break None,
+            Err(_) => break stop(&mut child, Waited::TimedOut),
         }
     };
     Ok((status, start.elapsed().as_secs_f64()))
@@ -272,8 +317,9 @@ fn exit_description(s: &std::process::ExitStatus) -> String {
 }
 
 /// Run one haptic loop in a child process (`surgbench haptic ... --csv`):
-/// a panicking or hanging model becomes a `failed` / `timeout` row.
-fn run_haptic_job(job: &HapticJob, dir: &Path, opts: &BatchOptions) -> HapticRow {
+/// a panicking or hanging model becomes a `failed` / `timeout` row; a
+/// signal to the batch is returned as [`BatchError::Interrupted`].
+fn run_haptic_job(job: &HapticJob, dir: &Path, opts: &BatchOptions) -> Result<HapticRow, BatchError> {
     let mut row = HapticRow {
         model: job.model.clone(),
         scenario: job.scenario.clone(),
@@ -285,7 +331,7 @@ fn run_haptic_job(job: &HapticJob, dir: &Path, opts: &BatchOptions) -> HapticRow
     if let Some(reason) = &job.unsupported {
         row.status = Status::Unsupported;
         row.reason = reason.clone();
-        return row;
+        return Ok(row);
     }
     let stem = slug(&format!("{}-{}-{}", job.model, job.scenario, job.fidelity));
     let csv = dir.join(format!("{stem}.csv"));
@@ -300,6 +346,7 @@ fn run_haptic_job(job: &HapticJob, dir: &Path, opts: &BatchOptions) -> HapticRow
     // Model build and the loop's own duration, with room for a slow machine.
     let timeout = 2.0 * job.duration_s + 120.0;
     match run_child(cmd, &err_path, timeout, opts) {
+        ChildEnd::Interrupted(sig) => return Err(BatchError::Interrupted(sig)),
         ChildEnd::Failed(status, reason) => (row.status, row.reason) = (status, reason),
         ChildEnd::Success => match surgbench_reports::read_haptic_csv(&csv) {
             Ok(mut r) if r.len() == 1 => row = r.remove(0),
@@ -315,7 +362,7 @@ fn run_haptic_job(job: &HapticJob, dir: &Path, opts: &BatchOptions) -> HapticRow
     }
     let _ = std::fs::remove_file(&err_path);
     let _ = std::fs::remove_file(&csv);
-    row
+    Ok(row)
 }
 
 /// Today's date and time (UTC) from the system clock, ISO 8601.
@@ -426,6 +473,19 @@ pub fn replace_dir(tmp: &Path, out: &Path) -> std::io::Result<()> {
     }
 }
 
+/// Remove every temporary sibling of `out` ([`temp_sibling`], any pid).
+fn remove_temp_siblings(out: &Path) {
+    let (Some(parent), Some(name)) = (out.parent(), out.file_name().and_then(|n| n.to_str())) else {
+        return;
+    };
+    let prefix = format!(".{name}.tmp-");
+    for e in std::fs::read_dir(parent).into_iter().flatten().flatten() {
+        if e.file_name().to_str().is_some_and(|n| n.starts_with(&prefix)) {
+            let _ = std::fs::remove_dir_all(e.path());
+        }
+    }
+}
+
 /// A temporary sibling of `out` for building a replacement.
 pub fn temp_sibling(out: &Path) -> std::io::Result<PathBuf> {
     let parent = out
@@ -445,7 +505,14 @@ pub fn temp_sibling(out: &Path) -> std::io::Result<PathBuf> {
     Ok(tmp)
 }
 
+/// `Err(Interrupted)` once a SIGINT/SIGTERM has reached the batch.
+fn interrupted() -> Result<(), BatchError> {
+    crate::interrupt::pending().map_or(Ok(()), |sig| Err(BatchError::Interrupted(sig)))
+}
+
 /// Run a comparison and write its report to `opts.out`. Returns the rows.
+/// On any error, an interruption included, the temporary folder is removed
+/// and `opts.out` is left as it was.
 pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultRow>, BatchError> {
     let started = Instant::now();
     crate::outdir::check_replaceable(&opts.out, opts.force)?;
@@ -478,7 +545,8 @@ pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultR
         let mut rows = Vec::with_capacity(jobs.len());
         for job in &jobs {
             bar.set_message(format!("{} / {} / {}", job.scenario, job.model, job.fidelity));
-            rows.push(run_job(c, job, &runs, opts, repeats, timeout));
+            rows.push(run_job(c, job, &runs, opts, repeats, timeout)?);
+            interrupted()?;
             bar.inc(1);
         }
         // Haptic loops run alone, after every other run, so they do not
@@ -486,7 +554,8 @@ pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultR
         let mut haptic = Vec::with_capacity(haptic_jobs.len());
         for job in &haptic_jobs {
             bar.set_message(format!("haptic {} / {} at {} Hz", job.scenario, job.model, job.rate_hz));
-            haptic.push(run_haptic_job(job, &runs, opts));
+            haptic.push(run_haptic_job(job, &runs, opts)?);
+            interrupted()?;
             bar.inc(1);
         }
         if !haptic.is_empty() {
@@ -501,6 +570,7 @@ pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultR
         let json = serde_json::to_string_pretty(&info).map_err(|e| BatchError::Io(e.to_string()))?;
         std::fs::write(tmp.join("summary.json"), json + "\n").map_err(io("cannot write summary.json"))?;
         surgbench_reports::render(&tmp, &rows, &info).map_err(|e| BatchError::Io(e.to_string()))?;
+        interrupted()?;
         replace_dir(&tmp, &opts.out).map_err(io("cannot move the report into place"))?;
         Ok(rows)
     })();

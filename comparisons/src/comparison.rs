@@ -323,6 +323,10 @@ impl Comparison {
                     }
                     fid.check_extras(f.fidelity_keys())
                         .map_err(|e| UsageError(format!("scenario `{}`, model `{id}`: {}", sc.id(), e.0)))?;
+                    if let Some(dt) = f.default_fidelity(inst.scene()).merged(&fid).dt {
+                        crate::runner::check_steps(inst.scene().duration, dt)
+                            .map_err(|e| UsageError(format!("scenario `{}`, model `{id}`: {}", sc.id(), e.0)))?;
+                    }
                     jobs.push(Job {
                         scenario: sc.id().into(),
                         params: overrides.clone(),

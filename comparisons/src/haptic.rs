@@ -18,6 +18,7 @@
 //! commands and time steps however late a tick runs, so two runs render
 //! bit-identical feedback (checked in `tests/vessel_haptic.rs`).
 
+use crate::runner::short;
 use crate::scenario::UsageError;
 use std::fmt;
 use std::time::{Duration, Instant};
@@ -168,7 +169,8 @@ impl HapticReport {
 /// wall (and simulated) time on a dedicated thread; see the module docs.
 /// The device is borrowed, so a [`surgbench_core::haptic::ReplayDevice`]
 /// can write its recording afterwards. A model error stops the loop and is
-/// reported in [`HapticReport::stopped`].
+/// reported in [`HapticReport::stopped`]; a loop of more model steps than
+/// [`crate::runner::MAX_STEPS`] is a usage error.
 pub fn run_haptic_loop(
     model: Box<dyn Model>,
     device: &mut dyn HapticDevice,
@@ -181,14 +183,27 @@ pub fn run_haptic_loop(
     if !(duration_s > 0.0 && duration_s.is_finite()) {
         return Err(UsageError(format!("haptic duration must be > 0 s, got {duration_s}")));
     }
-    let ticks = (duration_s * rate_hz).round().max(1.0) as usize;
+    let ticks = (duration_s * rate_hz).round().max(1.0);
     let period = 1.0 / rate_hz;
     let mdt = model.dt();
     let substeps = if mdt > 0.0 && mdt.is_finite() {
-        (period / mdt * (1.0 - 1e-12)).ceil().max(1.0) as usize
+        (period / mdt * (1.0 - 1e-12)).ceil().max(1.0)
     } else {
-        1
+        1.0
     };
+    // The model steps of the whole loop, bounded like a run's.
+    let max = crate::runner::MAX_STEPS as f64;
+    if !(ticks * substeps <= max) {
+        return Err(UsageError(format!(
+            "haptic loop of {} s at {} Hz with the model's dt {} s is {} ticks of {} steps, more than the {max:.0e} steps a run may take (shorten --duration or raise dt)",
+            short(duration_s),
+            short(rate_hz),
+            short(mdt),
+            short(ticks),
+            short(substeps)
+        )));
+    }
+    let (ticks, substeps) = (ticks as usize, substeps as usize);
     let dt = period / substeps as f64;
     std::thread::scope(|scope| {
         let handle = std::thread::Builder::new()
@@ -199,12 +214,10 @@ pub fn run_haptic_loop(
                     rate_hz,
                     duration_s,
                     substeps,
-                    commands: Vec::with_capacity(ticks),
-                    feedback: Vec::with_capacity(ticks),
                     ..Default::default()
                 };
-                let mut latency = Vec::with_capacity(ticks);
-                let mut lateness = Vec::with_capacity(ticks);
+                // Grown as the loop goes, like a run's records.
+                let (mut latency, mut lateness) = (Vec::new(), Vec::new());
                 let start = Instant::now();
                 'ticks: for k in 0..ticks {
                     let scheduled = start + Duration::from_secs_f64(k as f64 * period);

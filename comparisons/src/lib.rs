@@ -12,6 +12,7 @@ pub mod datasets;
 pub mod faulty;
 pub mod gate;
 pub mod haptic;
+pub mod interrupt;
 pub mod outdir;
 pub mod references;
 pub mod registry;

@@ -31,7 +31,8 @@ pub struct ResolvedRun {
 
 impl ResolvedRun {
     /// Resolve `scenario` x `model` with parameter `overrides` at `fidelity`;
-    /// an unknown id, parameter or knob, or an out-of-range value, is a
+    /// an unknown id, parameter or knob, an out-of-range value, or more
+    /// steps at the full fidelity's `dt` than [`runner::MAX_STEPS`], is a
     /// [`UsageError`]. A scene the model does not support is not an error:
     /// see [`ResolvedRun::support`].
     pub fn new(
@@ -49,6 +50,10 @@ impl ResolvedRun {
         let run = sc.instantiate_at(&params, &fidelity)?;
         let support = factory.check(run.scene()).map_err(|u| u.reason);
         let full = factory.default_fidelity(run.scene()).merged(&fidelity);
+        if let Some(dt) = full.dt {
+            runner::check_steps(run.scene().duration, dt)
+                .map_err(|e| UsageError(format!("{scenario} with `{model}`: {e}")))?;
+        }
         Ok(Self {
             scenario: sc,
             factory,

@@ -17,6 +17,44 @@ use surgbench_reports::{End, NodeState, Outcome, Status};
 /// before the load acts must not pass for one at equilibrium.
 const MIN_SETTLE_STEPS: usize = 10;
 
+/// Most model steps one run (or one haptic loop) may take: 1e8. A run's
+/// buffers grow with its steps (12 bytes a step for the timing and solver
+/// iteration records, so at most about 1.2 GB here, 2.4 GB while a vector
+/// doubles), and at the fastest models' ~1 us a step 1e8 steps are
+/// minutes of work, hours for most: a run past the bound comes from a
+/// mistyped duration, time step or material constant (the models' stable
+/// time step shrinks with stiffness and lightness), so it is refused as a
+/// usage error before anything runs or is written.
+pub const MAX_STEPS: usize = 100_000_000;
+
+/// `v` for a message: plain in [1e-3, 1e4), else scientific with four
+/// significant digits (`1e300`, `1.435e-151`).
+pub(crate) fn short(v: f64) -> String {
+    if v == 0.0 || (1e-3..1e4).contains(&v.abs()) || !v.is_finite() {
+        return format!("{v}");
+    }
+    let s = format!("{v:.3e}");
+    let (mantissa, exp) = s.split_once('e').unwrap_or((&s, "0"));
+    let mantissa = mantissa.trim_end_matches('0').trim_end_matches('.');
+    format!("{mantissa}e{exp}")
+}
+
+/// The number of steps of `duration` (s) at `dt` (s), `ceil(duration / dt)`
+/// and at least 1, or a usage error naming both and [`MAX_STEPS`] when it
+/// is larger than the bound (or `dt` is not a positive number).
+pub fn check_steps(duration: f64, dt: f64) -> Result<usize, UsageError> {
+    let steps = (duration / dt).ceil().max(1.0);
+    if !(dt > 0.0 && steps <= MAX_STEPS as f64) {
+        return Err(UsageError(format!(
+            "duration {} s at dt {} s is {} steps, more than the {MAX_STEPS:.0e} steps a run may take (shorten the duration or raise dt; a stiffer or lighter material needs a smaller stable dt)",
+            short(duration),
+            short(dt),
+            short(steps)
+        )));
+    }
+    Ok(steps as usize)
+}
+
 /// How to run.
 #[derive(Debug, Clone)]
 pub struct RunOptions {
@@ -220,14 +258,16 @@ struct Repeat {
 }
 
 impl Repeat {
-    /// Before the first step, from the initial observation.
-    fn start(scene: &Scene, first: Observation, max_steps: usize) -> Self {
+    /// Before the first step, from the initial observation. The per-step
+    /// records grow as the run goes: a run that stops early (a watchdog, a
+    /// settled scene) never pays for its whole duration.
+    fn start(scene: &Scene, first: Observation) -> Self {
         Repeat {
             steps: 0,
             wall_s: 0.0,
             t: 0.0,
-            times_ms: Vec::with_capacity(max_steps),
-            iters: Vec::with_capacity(max_steps),
+            times_ms: Vec::new(),
+            iters: Vec::new(),
             end: if scene.settle.is_some() {
                 End::TimeLimit
             } else {
@@ -254,24 +294,25 @@ fn sample(obs: &Observation, scorer: &dyn Scorer, primary: &str) -> Sample {
     }
 }
 
-/// Step the model through the scene once, timing each step and watching it.
+/// Step the model through the scene once (at most `max_steps` steps, from
+/// [`check_steps`]), timing each step and watching it.
 fn run_repeat(
     model: &mut dyn surgbench_core::Model,
     run: &ScenarioRun,
     primary: &str,
     opts: &RunOptions,
     record: bool,
+    max_steps: usize,
 ) -> Repeat {
     let scene = run.scene();
     let dt = model.dt();
-    let max_steps = (scene.duration / dt).ceil().max(1.0) as usize;
     let every = (max_steps / opts.samples.max(1)).max(1);
     let first = model.observe();
     let e0 = first.energy.total();
     let mut hand = HandWork::new(scene);
     hand.record(&scene.control.command_at(0.0), &first);
     let mut scorer = run.scorer();
-    let mut rep = Repeat::start(scene, first, max_steps);
+    let mut rep = Repeat::start(scene, first);
     if record {
         rep.series.push(sample(&rep.last, scorer.as_ref(), primary));
     }
@@ -448,7 +489,11 @@ fn run_repeats(
         Ok(m) => m,
         Err(reason) => return Ok(Err(reason)),
     };
-    let first = run_repeat(model.as_mut(), run, primary, opts, true);
+    // The model's own time step decides the step count: checked here too,
+    // since a model may choose it from the material when no `dt` is given.
+    let max_steps = check_steps(run.scene().duration, model.dt())
+        .map_err(|e| UsageError(format!("model `{}`: {e}", factory.id())))?;
+    let first = run_repeat(model.as_mut(), run, primary, opts, true, max_steps);
     let mut reps = Repeats {
         build_ms,
         diagnostics: model.diagnostics(),
@@ -462,7 +507,7 @@ fn run_repeats(
             Ok((m, _)) => m,
             Err(reason) => return Ok(Err(reason)),
         };
-        let rep = run_repeat(model.as_mut(), run, primary, opts, false);
+        let rep = run_repeat(model.as_mut(), run, primary, opts, false, max_steps);
         reps.times_ms.extend_from_slice(&rep.times_ms);
         reps.iters.extend(rep.iters.iter().map(|&i| i as f64));
         if reps.first.last != rep.last || reps.first.steps != rep.steps {
@@ -633,6 +678,39 @@ mod tests {
 
     /// Two rods: the clamp motion is not one rigid motion, so nothing is
     /// accounted and the watchdog sees the raw energy.
+    /// The step bound: inside it the count is `ceil(duration / dt)`; past it
+    /// (or at a dt that is not a positive number) a usage error names the
+    /// duration, the dt and the bound.
+    #[test]
+    fn short_numbers_for_messages() {
+        assert_eq!(short(5.0), "5");
+        assert_eq!(short(1e300), "1e300");
+        assert_eq!(short(1.435194819406226e-151), "1.435e-151");
+        assert_eq!(short(1e9), "1e9");
+    }
+
+    #[test]
+    fn step_bound_is_a_usage_error() {
+        // Powers of two for dt: the quotients below are exact.
+        assert_eq!(check_steps(1.0, 0.25), Ok(4));
+        assert_eq!(check_steps(1e-6, 0.25), Ok(1));
+        assert_eq!(check_steps(5e7, 0.5), Ok(MAX_STEPS));
+        for (duration, dt) in [
+            (5e7 + 0.5, 0.5),
+            (1e300, 1e-3),
+            (1.0, 1e-300),
+            (1e9, 1e-3),
+            (1.0, 0.0),
+            (1.0, f64::NAN),
+        ] {
+            let e = check_steps(duration, dt).expect_err("past the bound").0;
+            assert!(
+                e.contains(&format!("duration {} s", short(duration))) && e.contains("1e8 steps"),
+                "duration {duration}, dt {dt}: {e}"
+            );
+        }
+    }
+
     #[test]
     fn hand_work_is_not_guessed_for_two_rods() {
         let mut scene = Scene::empty("two");

@@ -9,7 +9,7 @@
 use std::collections::BTreeMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
-use surgbench_core::{Family, Fidelity, Observation, Scene};
+use surgbench_core::{ControlTimeline, Family, Fidelity, Observation, Scene};
 
 /// A usage error: bad parameter, unknown name. The CLI prints it on one line
 /// and exits with code 2.
@@ -275,6 +275,40 @@ impl<T: Pointwise> Reference for T {
     }
 }
 
+/// How far the hand may feed a wire: its clamp starts `start` (m) along a
+/// straight of length `straight` (m), named `what`, and must stay on it.
+/// A vessel scene checks its own timeline with it, and a replayed session
+/// is checked against the same limit ([`ScenarioRun::check_control`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FeedLimit {
+    /// Where the clamp starts along the straight (m).
+    pub start: f64,
+    /// Length of the straight (m).
+    pub straight: f64,
+    /// The straight's name, for messages.
+    pub what: &'static str,
+}
+
+impl FeedLimit {
+    /// `Err` when an insertion of `insertion` (m) would take the clamp off
+    /// either end of the straight (a non-finite insertion included).
+    pub fn check(&self, insertion: f64) -> Result<(), UsageError> {
+        let (reach, straight, what) = (self.start + insertion, self.straight, self.what);
+        if !(reach <= straight) {
+            return Err(UsageError(format!(
+                "the clamp would be fed {reach:.3} m along the {straight:.3} m {what}: past its end, into the wall (shorten the push)"
+            )));
+        }
+        if !(reach >= 0.0) {
+            return Err(UsageError(format!(
+                "the clamp would be pulled back {:.3} m behind the start of the {straight:.3} m {what}, out of the vessel",
+                -reach
+            )));
+        }
+        Ok(())
+    }
+}
+
 /// One instantiated scenario: the scene every model runs, the reference its
 /// runs are scored against (computed once, outside any timed loop), and the
 /// scales the runner's watchdogs use.
@@ -285,6 +319,7 @@ pub struct ScenarioRun {
     length_scale: f64,
     penetration_limit: f64,
     reference_tip: Option<[f64; 3]>,
+    feed_limit: Option<FeedLimit>,
 }
 
 impl ScenarioRun {
@@ -300,7 +335,29 @@ impl ScenarioRun {
             length_scale,
             penetration_limit: f64::INFINITY,
             reference_tip: None,
+            feed_limit: None,
         }
+    }
+    /// The hand may feed the wire only as far as `limit` allows: a control
+    /// timeline other than the scene's own (a replayed session) is checked
+    /// against it by [`ScenarioRun::check_control`].
+    pub fn with_feed_limit(mut self, limit: FeedLimit) -> Self {
+        self.feed_limit = Some(limit);
+        self
+    }
+    /// Whether `timeline` (e.g. a replayed session driving this scene) keeps
+    /// within the limits the scenario checks its own timeline against: a
+    /// usage error naming the key that would feed the wire too far.
+    pub fn check_control(&self, timeline: &ControlTimeline) -> Result<(), UsageError> {
+        let Some(limit) = self.feed_limit else {
+            return Ok(());
+        };
+        for k in &timeline.keys {
+            limit
+                .check(k.insertion)
+                .map_err(|e| UsageError(format!("at t={} s: {e}", k.t)))?;
+        }
+        Ok(())
     }
     /// Trip the penetration watchdog past `limit` (m).
     pub fn with_penetration_limit(mut self, limit: f64) -> Self {

@@ -187,7 +187,12 @@ fn build(p: &ArchParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
         )));
     }
     let feed = p.insertion_speed * p.duration;
-    clamp_stays_in_straight(ENTRY_S + feed, vessel::ARCH_DESCENDING, "descending aorta")?;
+    let feed_limit = FeedLimit {
+        start: ENTRY_S,
+        straight: vessel::ARCH_DESCENDING,
+        what: "descending aorta",
+    };
+    feed_limit.check(feed)?;
     let arch = Arc::new(vessel::aortic_arch());
     let mut scene = Scene::empty(ARCH_INSERTION.info.id);
     scene.duration = p.duration;
@@ -215,5 +220,5 @@ fn build(p: &ArchParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
         reference: cached_reference(ARCH_INSERTION.info.id, inputs)?,
         vessel: arch,
     };
-    Ok(vessel_run(scene, run, energy, 0.25))
+    Ok(vessel_run(scene, run, energy, 0.25).with_feed_limit(feed_limit))
 }

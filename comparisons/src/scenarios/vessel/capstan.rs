@@ -176,7 +176,12 @@ fn build(p: &CapstanParams, _: &Inputs) -> Result<ScenarioRun, UsageError> {
     rod.tip_force = exit_dir * t_in;
     // Thread the tip into the exit segment, dwell, pull back.
     let ins = entry + rc * theta + CAPSTAN_THREAD - l0;
-    clamp_stays_in_straight(ins, entry, "entry straight")?;
+    let feed_limit = FeedLimit {
+        start: 0.0,
+        straight: entry,
+        what: "entry straight",
+    };
+    feed_limit.check(ins)?;
     let (vi, vp, lp) = (p.insert_speed, p.pull_speed, p.pull_length);
     if lp >= CAPSTAN_THREAD - 1e-3 {
         return Err(UsageError(format!(
@@ -215,5 +220,5 @@ fn build(p: &CapstanParams, _: &Inputs) -> Result<ScenarioRun, UsageError> {
         axis: Vec3::x(),
         bending: ei / (rc * rc * t_in),
     };
-    Ok(vessel_run(scene, run, energy, 0.1))
+    Ok(vessel_run(scene, run, energy, 0.1).with_feed_limit(feed_limit))
 }

@@ -167,7 +167,12 @@ pub(super) fn coronary_run(
             cor.trunk.length()
         )));
     }
-    clamp_stays_in_straight(ENTRY_S + advance, vessel::CORONARY_ENTRY, "coronary entry")?;
+    let feed_limit = FeedLimit {
+        start: ENTRY_S,
+        straight: vessel::CORONARY_ENTRY,
+        what: "coronary entry",
+    };
+    feed_limit.check(advance)?;
     let mut scene = Scene::empty(id);
     scene.duration = duration;
     scene.bodies.push(wire.rod(l0, cor.trunk.frame_at(ENTRY_S))?.into());
@@ -183,5 +188,5 @@ pub(super) fn coronary_run(
         motion: scene.environment.vessel_motion.clone(),
         wire_radius: wire.radius,
     };
-    Ok(vessel_run(scene, run, energy, 0.15))
+    Ok(vessel_run(scene, run, energy, 0.15).with_feed_limit(feed_limit))
 }

@@ -36,7 +36,7 @@ pub use coronary_tortuous::{CORONARY_TORTUOUS, CoronaryParams};
 pub use flow_drift::{FLOW_DRIFT, FlowParams};
 pub use stick_slip_threshold::{STICK_SLIP_THRESHOLD, StickParams};
 
-use crate::scenario::{Metrics, ParamSpec, Range, Reference, Scenario, ScenarioRun, Scorer, UsageError};
+use crate::scenario::{FeedLimit, Metrics, ParamSpec, Range, Reference, Scenario, ScenarioRun, Scorer, UsageError};
 use std::f64::consts::PI;
 use surgbench_core::sdf::Sdf;
 use surgbench_core::{ContactParams, ControlKey, ControlTimeline, Iso3, Observation, RodBody, RodSection, Scene, Vec3};
@@ -217,15 +217,6 @@ fn contact(friction_static: f64, friction_dynamic: f64, margin: f64) -> Result<C
 /// Insertion moves the clamp along its straight tangent: it must stay in
 /// the straight segment (length `straight`, m) it starts in, or the scene
 /// would drive it through the wall. `reach` = clamp start + deepest feed (m).
-fn clamp_stays_in_straight(reach: f64, straight: f64, what: &str) -> Result<(), UsageError> {
-    if reach > straight {
-        return Err(UsageError(format!(
-            "the clamp would be fed {reach:.3} m along the {straight:.3} m {what}: past its end, into the wall (shorten the push)"
-        )));
-    }
-    Ok(())
-}
-
 fn check_lumen(wire_radius: f64, lumen: f64, what: &str) -> Result<(), UsageError> {
     if !(wire_radius < 0.9 * lumen) {
         return Err(UsageError(format!(
