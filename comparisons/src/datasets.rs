@@ -1,7 +1,7 @@
 //! Where the data a scenario reads live (phantom data, scikit-fem
 //! references, cached trajectories), and the loaders of the phantom sets.
 
-use crate::scenario::UsageError;
+use crate::error::UsageError;
 use std::path::{Path, PathBuf};
 use surgbench_core::io::truth_cube;
 

@@ -9,6 +9,7 @@ pub mod batch;
 pub mod comparison;
 pub mod conformance;
 pub mod datasets;
+pub mod error;
 pub mod faulty;
 pub mod gate;
 pub mod haptic;

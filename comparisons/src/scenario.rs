@@ -7,22 +7,10 @@
 //! set, outside any timed loop.
 
 use std::collections::BTreeMap;
-use std::fmt;
 use std::path::{Path, PathBuf};
 use surgbench_core::{ControlTimeline, Family, Fidelity, Observation, Scene};
 
-/// A usage error: bad parameter, unknown name. The CLI prints it on one line
-/// and exits with code 2.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct UsageError(pub String);
-
-impl fmt::Display for UsageError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for UsageError {}
+pub use crate::error::UsageError;
 
 /// Admissible range of a parameter.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -401,9 +389,14 @@ impl ScenarioRun {
 pub enum Sweep {
     /// One knob (`segments`, `dt`, ...) over these values.
     Knob(&'static str, &'static [f64]),
-    /// Tissue mesh levels `0..=MAX_LEVEL`, each with this time step (s) if
+    /// Tissue mesh levels `0..=up_to`, each with time step `dt` (s) if
     /// given.
-    MeshLevels(Option<f64>),
+    MeshLevels {
+        /// The finest level.
+        up_to: usize,
+        /// The time step of every level, if the sweep sets one.
+        dt: Option<f64>,
+    },
 }
 
 impl Sweep {
@@ -411,7 +404,7 @@ impl Sweep {
     pub fn fidelities(self) -> Vec<Fidelity> {
         match self {
             Sweep::Knob(knob, values) => sweep_of(knob, values),
-            Sweep::MeshLevels(dt) => (0..=crate::scenarios::tissue::MAX_LEVEL)
+            Sweep::MeshLevels { up_to, dt } => (0..=up_to)
                 .map(|l| Fidelity {
                     mesh_level: Some(l),
                     dt,

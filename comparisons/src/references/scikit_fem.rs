@@ -3,7 +3,7 @@
 //! spherical catheter tip on a vessel wall, and the bonded flat punch.
 
 use super::tables::{interpolate, meta_number, read_csv_columns, read_curve, read_meta};
-use crate::scenario::UsageError;
+use crate::error::UsageError;
 use std::f64::consts::PI;
 use std::path::Path;
 

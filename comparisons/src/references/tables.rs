@@ -1,7 +1,7 @@
 //! Reading the tables a reference ships: numeric CSV with a header, and the
 //! `[parameters]` of its `meta.toml`.
 
-use crate::scenario::UsageError;
+use crate::error::UsageError;
 use std::path::{Path, PathBuf};
 use surgbench_core::io::table;
 

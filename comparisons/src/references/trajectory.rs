@@ -1,7 +1,8 @@
 //! Cached reference trajectories: a converged model's tip path over time.
 
 use super::tables::read_csv_columns;
-use crate::scenario::{Inputs, UsageError};
+use crate::error::UsageError;
+use crate::scenario::Inputs;
 use std::path::Path;
 use surgbench_core::Vec3;
 

@@ -4,9 +4,7 @@
 use super::*;
 use crate::params;
 use crate::references::BlockReference;
-use crate::scenario::{
-    Declared, Inputs, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
-};
+use crate::scenario::{Declared, Inputs, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, UsageError};
 use surgbench_core::{Family, Observation, TetMesh, TissueBody, Vec3};
 
 params! {
@@ -63,7 +61,7 @@ pub const BLOCK_COMPRESSION: Declared<BlockParams> = Declared {
         reference: "scikit-fem P2, LINEAR elasticity (datasets/reference/block-compression): exact for small strain; at 20% large-strain laws differ by design",
         primary_error: "force_error_rel",
         params: BlockParams::SPECS,
-        sweep: Sweep::MeshLevels(None),
+        sweep: LEVELS,
         quick: 3,
     },
     datasets: None,

@@ -4,9 +4,7 @@
 use super::*;
 use crate::params;
 use crate::references::lame_radial_displacement;
-use crate::scenario::{
-    Declared, Inputs, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
-};
+use crate::scenario::{Declared, Inputs, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, UsageError};
 use std::collections::BTreeMap;
 use surgbench_core::{Family, Observation, TetMesh, TissueBody, Vec3};
 
@@ -102,7 +100,7 @@ pub const LAME_TUBE: Declared<LameParams> = Declared {
         reference: "Lamé closed form, plane strain (Timoshenko & Goodier Sec. 28); scikit-fem P2 agrees to 6.7e-4 (datasets/reference/lame-tube)",
         primary_error: "rms_radial_error_rel",
         params: LameParams::SPECS,
-        sweep: Sweep::MeshLevels(None),
+        sweep: LEVELS,
         quick: 3,
     },
     datasets: None,

@@ -46,7 +46,7 @@ pub use volume_preservation::{VOLUME_PRESERVATION, VolumeParams, squash_twist};
 pub use wall_indentation::{WALL_INDENTATION, WallParams, wall_sphere_cells, wall_sphere_mesh};
 pub use wall_punch::{FOOTPRINT_TOL, PunchParams, WALL_PUNCH, wall_cells, wall_clamped, wall_footprint, wall_mesh};
 
-use crate::scenario::{Metrics, ParamSpec, Range, Scenario, UsageError};
+use crate::scenario::{Metrics, ParamSpec, Range, Scenario, Sweep, UsageError};
 use std::collections::HashSet;
 use std::f64::consts::PI;
 use surgbench_core::mesh;
@@ -61,6 +61,19 @@ pub const DEFAULT_LEVEL: usize = 1;
 /// level 3 is 32^3 cells (196,608 tets); level 4 (1.6 M tets) is beyond what
 /// a 2-core CI machine or the PBD/FEM models here handle in minutes.
 pub const MAX_LEVEL: usize = 3;
+
+/// The sweep of the tissue scenes: mesh levels 0..=[`MAX_LEVEL`].
+const LEVELS: Sweep = Sweep::MeshLevels {
+    up_to: MAX_LEVEL,
+    dt: None,
+};
+
+/// The sweep of the sphere-contact scenes: mesh levels 0..=[`MAX_LEVEL`] at
+/// [`SPHERE_DT`] (8 quasi-static load steps over the default ramp).
+const CONTACT_LEVELS: Sweep = Sweep::MeshLevels {
+    up_to: MAX_LEVEL,
+    dt: Some(SPHERE_DT),
+};
 /// Every tissue scenario, in report order.
 pub fn all() -> Vec<&'static dyn Scenario> {
     vec![

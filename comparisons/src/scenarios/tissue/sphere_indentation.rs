@@ -4,7 +4,7 @@
 use super::*;
 use crate::params;
 use crate::references::{hertz_contact_radius, hertz_force, sphere_force_exact};
-use crate::scenario::{Declared, Inputs, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError};
+use crate::scenario::{Declared, Inputs, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, UsageError};
 use surgbench_core::{Family, Observation, Scene, TetMesh, TissueBody, Vec3};
 
 /// Where the contact radius sits in the graded mesh's reference coordinate
@@ -207,7 +207,7 @@ pub const SPHERE_INDENTATION: Declared<SphereParams> = Declared {
         reference: "Hertz 1882 (Johnson 1985 eq. 4.22-4.23): F = 4/3 E* sqrt(R) delta^1.5, a = sqrt(R delta); biased by the finite block (+~2 %) and the paraboloid (-0.1 %)",
         primary_error: "force_error_rel",
         params: SphereParams::SPECS,
-        sweep: Sweep::MeshLevels(Some(SPHERE_DT)),
+        sweep: CONTACT_LEVELS,
         quick: 2,
     },
     datasets: None,

@@ -4,9 +4,7 @@
 use super::*;
 use crate::datasets::load_truth_cube;
 use crate::params;
-use crate::scenario::{
-    Declared, Inputs, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
-};
+use crate::scenario::{Declared, Inputs, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, UsageError};
 use surgbench_core::Mat3;
 use surgbench_core::io::truth_cube as phantom;
 use surgbench_core::{Family, Observation, TetMesh, TissueBody, Vec3};
@@ -227,7 +225,7 @@ pub const TRUTH_CUBE: Declared<TruthParams> = Declared {
         reference: "phantom data, Kerdok et al. 2003 (datasets/phantom/truth-cube); literature material, nothing fitted; bonded plates",
         primary_error: "rms_bead_error_m",
         params: TruthParams::SPECS,
-        sweep: Sweep::MeshLevels(None),
+        sweep: LEVELS,
         quick: 3,
     },
     datasets: None,

@@ -3,9 +3,7 @@
 
 use super::*;
 use crate::params;
-use crate::scenario::{
-    Declared, Inputs, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
-};
+use crate::scenario::{Declared, Inputs, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, UsageError};
 use surgbench_core::{Family, Observation, TetMesh, TissueBody, Vec3};
 
 params! {
@@ -83,7 +81,7 @@ pub const VOLUME_PRESERVATION: Declared<VolumeParams> = Declared {
         reference: "exact volume (V = V0 for an incompressible solid); for nu < 0.5 a property metric, ~(1-2nu) x compression expected",
         primary_error: "volume_change_rel",
         params: VolumeParams::SPECS,
-        sweep: Sweep::MeshLevels(None),
+        sweep: LEVELS,
         quick: 3,
     },
     datasets: None,

@@ -5,7 +5,7 @@
 use super::*;
 use crate::params;
 use crate::references::WallReference;
-use crate::scenario::{Declared, Inputs, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError};
+use crate::scenario::{Declared, Inputs, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, UsageError};
 use surgbench_core::{Family, Observation, Scene, TetMesh, TissueBody, Vec3};
 
 /// Cells `(n_r, n_s)` of the quarter wall mesh at `level`: `2^(level+1)`
@@ -181,7 +181,7 @@ pub const WALL_INDENTATION: Declared<WallParams> = Declared {
         reference: "scikit-fem P2, LINEAR elasticity, frictionless unilateral contact with the exact gap (datasets/reference/wall-indentation)",
         primary_error: "force_error_rel",
         params: WallParams::SPECS,
-        sweep: Sweep::MeshLevels(Some(SPHERE_DT)),
+        sweep: CONTACT_LEVELS,
         quick: 2,
     },
     datasets: None,

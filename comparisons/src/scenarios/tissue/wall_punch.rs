@@ -5,7 +5,7 @@ use super::wall_indentation::{WALL_DENSITY, WALL_E};
 use super::*;
 use crate::params;
 use crate::references::PunchReference;
-use crate::scenario::{Declared, Inputs, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError};
+use crate::scenario::{Declared, Inputs, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, UsageError};
 use surgbench_core::{Family, Observation, Scene, TetMesh, TissueBody, Vec3};
 
 /// Relative tolerance of the footprint rule `y^2 + (z - L/2)^2 <= r_p^2 (1 +
@@ -169,7 +169,7 @@ pub const WALL_PUNCH: Declared<PunchParams> = Declared {
         reference: "scikit-fem P2, LINEAR elasticity, bonded flat punch (datasets/reference/wall-punch)",
         primary_error: "force_error_rel",
         params: PunchParams::SPECS,
-        sweep: Sweep::MeshLevels(None),
+        sweep: LEVELS,
         quick: 3,
     },
     datasets: None,
