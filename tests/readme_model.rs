@@ -3,6 +3,8 @@
 //! the model it defines passes the conformance suite and runs a catalogue
 //! scenario through the runner with the results its physics predicts.
 
+#[path = "readme/block.rs"]
+mod block;
 #[path = "readme/model.rs"]
 mod example;
 
@@ -14,25 +16,12 @@ use surgbench_comparisons::scenario::{Params, Scenario};
 use surgbench_comparisons::scenarios::rod::CANTILEVER_GRAVITY;
 use surgbench_core::{Fidelity, ModelFactory};
 
-/// The README section's `rust` code block.
-fn readme_block(section: &str) -> String {
-    let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
-    let at = readme
-        .find(section)
-        .unwrap_or_else(|| panic!("README has no `{section}`"));
-    let rest = &readme[at..];
-    let start = rest.find("```rust\n").expect("a rust block in the section") + "```rust\n".len();
-    let len = rest[start..].find("```\n").expect("the block ends");
-    rest[start..start + len].to_string()
-}
-
 #[test]
 fn the_readme_example_is_this_file() {
-    let file = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/readme/model.rs")).unwrap();
-    assert_eq!(
-        readme_block("## Adding a model variant"),
-        file,
-        "README's model example and tests/readme/model.rs differ"
+    block::assert_block_is_file(
+        concat!(env!("CARGO_MANIFEST_DIR"), "/README.md"),
+        "## Adding a model variant",
+        concat!(env!("CARGO_MANIFEST_DIR"), "/tests/readme/model.rs"),
     );
 }
 

@@ -3,6 +3,8 @@
 //! the scenario it defines resolves its parameters, refuses a misspelt one,
 //! and runs through the harness's runner with a registered model.
 
+#[path = "../../tests/readme/block.rs"]
+mod block;
 #[path = "readme/scenario.rs"]
 mod example;
 
@@ -12,25 +14,12 @@ use surgbench_comparisons::runner::{RunOptions, run_single};
 use surgbench_comparisons::scenario::{ParamSet, Params, Scenario};
 use surgbench_core::Fidelity;
 
-/// The README section's `rust` code block.
-fn readme_block(section: &str) -> String {
-    let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../README.md")).unwrap();
-    let at = readme
-        .find(section)
-        .unwrap_or_else(|| panic!("README has no `{section}`"));
-    let rest = &readme[at..];
-    let start = rest.find("```rust\n").expect("a rust block in the section") + "```rust\n".len();
-    let len = rest[start..].find("```\n").expect("the block ends");
-    rest[start..start + len].to_string()
-}
-
 #[test]
 fn the_readme_example_is_this_file() {
-    let file = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/readme/scenario.rs")).unwrap();
-    assert_eq!(
-        readme_block("## Adding a scenario"),
-        file,
-        "README's scenario example and comparisons/tests/readme/scenario.rs differ"
+    block::assert_block_is_file(
+        concat!(env!("CARGO_MANIFEST_DIR"), "/../README.md"),
+        "## Adding a scenario",
+        concat!(env!("CARGO_MANIFEST_DIR"), "/tests/readme/scenario.rs"),
     );
 }
 
