@@ -32,6 +32,7 @@ pub fn models() -> Vec<Registered> {
         surgbench_pbd::PbdTissueFactory,
         surgbench_fem::FemFactory,
         surgbench_meshless::MeshlessFactory,
+        surgbench_needle::NeedleFactory,
     ];
     if std::env::var("SURGBENCH_FAULTY_MODELS").as_deref() == Ok("1") {
         use crate::faulty;

@@ -1,7 +1,8 @@
-//! The scenario catalogue: one file per scenario under `rod/`, `tissue/`
-//! and `vessel/`, each declaring its [`ScenarioInfo`](crate::ScenarioInfo),
+//! The scenario catalogue: one file per scenario under `rod/`, `tissue/`,
+//! `vessel/` and `needle/`, each declaring its [`ScenarioInfo`](crate::ScenarioInfo),
 //! its parameters (a `params!` struct) and its scorer.
 
+pub mod needle;
 pub mod rod;
 pub mod tissue;
 pub mod vessel;
@@ -13,5 +14,6 @@ pub fn all() -> Vec<&'static dyn Scenario> {
     let mut v = rod::all();
     v.extend(tissue::all());
     v.extend(vessel::all());
+    v.extend(needle::all());
     v
 }

@@ -31,6 +31,7 @@ pub mod material;
 pub mod mesh;
 pub mod model;
 pub mod motion;
+pub mod needle;
 pub mod observation;
 pub mod rng;
 pub mod scene;
@@ -45,6 +46,7 @@ pub use flow::FlowField;
 pub use material::SolidMaterial;
 pub use mesh::TetMesh;
 pub use model::{EnergyProbe, Model, ModelFactory, StepStats};
+pub use needle::NeedleTissue;
 pub use observation::{ContactObs, EnergyObs, Observation, RodObs, TissueObs};
 pub use scene::{
     Body, ContactParams, ControlKey, ControlTimeline, DeviceCommand, Environment, LoadRamp, RodBody, RodSection, Scene,

@@ -534,6 +534,8 @@ pub struct Scene {
     pub control: ControlTimeline,
     /// Static scenes: run to equilibrium.
     pub settle: Option<Settle>,
+    /// Needle scenes: how the one rod (the needle) acts on the one tissue.
+    pub needle: Option<crate::needle::NeedleTissue>,
 }
 
 impl Scene {
@@ -547,6 +549,7 @@ impl Scene {
             duration: 1.0,
             control: ControlTimeline::default(),
             settle: None,
+            needle: None,
         }
     }
 
@@ -618,6 +621,9 @@ impl Scene {
         if self.environment.vessel_motion.is_some() {
             c.push(Capability::MovingVessel);
         }
+        if self.needle.is_some() {
+            c.push(Capability::NeedleTissue);
+        }
         c.sort();
         c.dedup();
         c
@@ -674,6 +680,12 @@ impl Scene {
         }
         if self.environment.vessel_motion.is_some() && self.environment.vessel.is_none() {
             return Err("a vessel motion needs a vessel".into());
+        }
+        if let Some(n) = &self.needle {
+            n.validate()?;
+            if self.rods().count() != 1 || self.tissues().count() != 1 {
+                return Err("a needle scene has exactly one rod (the needle) and one tissue".into());
+            }
         }
         Ok(())
     }

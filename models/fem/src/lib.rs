@@ -36,7 +36,7 @@ pub mod supernodal;
 
 pub use assembly::{LinearSolver, Ordering};
 pub use contact::SphereContact;
-pub use dynamics::{DynParams, FemModel, Integrator, REUSE_TOL};
+pub use dynamics::{DynParams, FemModel, Integrator, LinearStep, REUSE_TOL};
 pub use element::Jacobian;
 pub use factory::FemFactory;
 pub use material::{Law, Material};

@@ -134,6 +134,7 @@ use surgbench_core::flow::FlowField;
 use surgbench_core::{ContactObs, ContactParams, DeviceCommand, Environment, Iso3, LoadRamp, Mat3, Sdf, Vec3};
 
 mod build;
+mod coupled;
 mod drag;
 mod eval;
 mod observe;

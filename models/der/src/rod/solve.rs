@@ -272,6 +272,15 @@ impl DerRod {
 
     /// One implicit step without retries.
     pub(super) fn single_step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
+        self.prepare_step(dt, cmd);
+        let stats = self.newton()?;
+        self.finish_step(dt)?;
+        Ok(stats)
+    }
+
+    /// Everything a step does before its solve: the inertia and loads of the
+    /// step, the warm start, the clamp at `cmd`, frames transported.
+    pub(super) fn prepare_step(&mut self, dt: f64, cmd: &DeviceCommand) {
         let newmark = self.params.integrator == Integrator::Newmark;
         let c = self.params.damping;
         self.anchor_frames();
@@ -322,8 +331,14 @@ impl DerRod {
         }
         self.apply_clamp(cmd);
         self.update_frames();
-        let stats = self.newton()?;
-        // Velocities (and accelerations) from the solved positions.
+    }
+
+    /// Everything a step does after its solve: velocities (and
+    /// accelerations) from the solved positions, time, contact forces and
+    /// the lagged contact state, the sanity check.
+    pub(super) fn finish_step(&mut self, dt: f64) -> Result<(), SimError> {
+        let newmark = self.params.integrator == Integrator::Newmark;
+        let ndof = self.q.len();
         for g in 0..ndof {
             let m = if g < CLAMPED_DOFS { 0.0 } else { self.dof_mass(g) };
             if newmark && m > 0.0 {
@@ -338,8 +353,7 @@ impl DerRod {
         self.accel_valid = newmark;
         self.time += dt;
         self.finish_contacts();
-        self.check_finite()?;
-        Ok(stats)
+        self.check_finite()
     }
 
     /// Static equilibrium with the clamp at `cmd` (no inertia, no friction;

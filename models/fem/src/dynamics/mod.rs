@@ -48,7 +48,10 @@ use surgbench_core::{
     DeviceCommand, EnergyObs, EnergyProbe, Model, Observation, SimError, StepStats, TissueBody, TissueObs, Vec3,
 };
 
+mod coupled;
 mod linear;
+
+pub use coupled::LinearStep;
 
 /// Default relative residual of the stale-factor-preconditioned CG
 /// ([`DynParams::reuse_tol`]). Measured on the bench block
@@ -505,23 +508,7 @@ impl FemModel {
         };
         self.t = t_end;
         self.s_last = s;
-        if !self
-            .x
-            .iter()
-            .chain(self.v.iter())
-            .all(|p| p.iter().all(|c| c.is_finite()))
-        {
-            return Err(SimError::Diverged {
-                t: self.t,
-                reason: "non-finite node position or velocity".into(),
-            });
-        }
-        if self.p.law == Law::NeoHookean && self.inverted > 0 {
-            return Err(SimError::Diverged {
-                t: self.t,
-                reason: format!("{} elements inverted (neo-Hookean is undefined there)", self.inverted),
-            });
-        }
+        self.check_state()?;
         Ok(stats)
     }
 

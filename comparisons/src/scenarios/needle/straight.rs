@@ -1,0 +1,212 @@
+//! `needle-straight`: a stiff symmetric-tip needle into a gel block at
+//! constant speed, held, then retracted. Reference: once every coupling
+//! point slides, the hand pushes with `f_cut + f_perlen d` (`d` = needle
+//! length inside the tissue; the seed's friction model, Chentanez et al.
+//! 2009 Sec. 3.3-3.4; viscous friction is zero in this scene), and while
+//! holding or retracting it can never feel more than the friction bounds.
+
+use super::*;
+use crate::params;
+use crate::scenario::{
+    Declared, Inputs, Metrics, ParamSet, ParamSpec, Range, Reference, ScenarioInfo, ScenarioRun, Scorer,
+};
+use surgbench_core::{
+    Body, ControlKey, ControlTimeline, Family, Iso3, NeedleTissue, Observation, RodBody, Scene, SolidMaterial,
+    TissueBody, Vec3, mesh,
+};
+
+params! {
+    /// Parameters of `needle-straight`. Gel: E and nu of 10 wt% gelatin as
+    /// issue 17 states them (14.8 kPa, 0.475), density of water; needle:
+    /// stainless steel (E = 200 GPa), 0.83 mm diameter as the seed's
+    /// phantom needle. Friction and cutting force are illustrative values
+    /// of this scene, not measurements.
+    pub struct StraightParams {
+        insertion_speed: ParamSpec::new("insertion_speed", 0.01, "m/s", Range::Positive, "speed of the base while inserting and retracting"),
+        depth: ParamSpec::new("depth", 0.012, "m", Range::Positive, "final tip depth below the entry face"),
+        hold_time: ParamSpec::new("hold_time", 0.3, "s", Range::NonNegative, "time held at depth"),
+        retraction: ParamSpec::new("retraction", 0.005, "m", Range::NonNegative, "distance retracted after the hold"),
+        tip_gap: ParamSpec::new("tip_gap", 0.001, "m", Range::Positive, "tip distance outside the entry face at t = 0"),
+        friction_per_length: ParamSpec::new("friction_per_length", 20.0, "N/m", Range::NonNegative, "Coulomb friction per length of shaft in the tissue"),
+        cutting_force: ParamSpec::new("cutting_force", 0.05, "N", Range::NonNegative, "force the tip needs to cut"),
+        viscous_friction: ParamSpec::new("viscous_friction", 0.0, "N s/m^2", Range::NonNegative, "viscous shaft friction per length"),
+        needle_length: ParamSpec::new("needle_length", 0.04, "m", Range::Positive, "needle length out of the guide sleeve"),
+        needle_radius: ParamSpec::new("needle_radius", 0.415e-3, "m", Range::Positive, "needle radius"),
+        needle_youngs_modulus: ParamSpec::new("needle_youngs_modulus", 200e9, "Pa", Range::Positive, "needle Young's modulus"),
+        youngs_modulus: ParamSpec::new("youngs_modulus", 14.8e3, "Pa", Range::Positive, "gel Young's modulus"),
+        poisson_ratio: ParamSpec::new("poisson_ratio", 0.475, "1", Range::Open(-1.0, 0.5), "gel Poisson ratio"),
+        density: ParamSpec::new("density", 1000.0, "kg/m^3", Range::Positive, "gel density"),
+        block_length: ParamSpec::new("block_length", 0.02, "m", Range::Positive, "block length along the needle"),
+        block_width: ParamSpec::new("block_width", 0.01, "m", Range::Positive, "block width and height"),
+    }
+}
+
+/// Depth (m) below which the insertion is not scored: the first coupling
+/// points are still joining.
+const SCORE_FROM_DEPTH: f64 = 2e-3;
+
+/// The closed form and the phases of the timeline.
+struct StraightRef {
+    f_perlen: f64,
+    f_cut: f64,
+    /// The mesh node at the entry (rest position on the needle's axis).
+    entry: usize,
+    t_insert: f64,
+    t_hold: f64,
+}
+
+/// Per-run sums of [`StraightRef`].
+struct StraightScorer<'a> {
+    r: &'a StraightRef,
+    worst_insertion: f64,
+    worst_hold: f64,
+    worst_retraction: f64,
+    scored: usize,
+}
+
+impl StraightRef {
+    /// The hand's push along +x (N) and the needle length inside the tissue
+    /// (m): tip x minus the entry node's x (the needle stays straight).
+    fn push_depth(&self, obs: &Observation) -> Option<(f64, f64)> {
+        let tip = obs.rods.first()?.nodes.last()?;
+        let entry = obs.tissues.first()?.nodes.get(self.entry)?;
+        Some((-obs.hand_force.x, (tip.x - entry.x).max(0.0)))
+    }
+}
+
+impl Scorer for StraightScorer<'_> {
+    fn observe_step(&mut self, obs: &Observation) {
+        let Some((push, d)) = self.r.push_depth(obs) else {
+            return;
+        };
+        let (f, t) = (self.r.f_perlen, obs.time);
+        if t <= self.r.t_insert && d >= SCORE_FROM_DEPTH {
+            let closed = self.r.f_cut + f * d;
+            self.worst_insertion = self.worst_insertion.max((push - closed).abs() / closed);
+            self.scored += 1;
+        } else if t > self.r.t_insert + 1e-9 && t <= self.r.t_hold && d > 0.0 {
+            let excess = push.abs() / (self.r.f_cut + f * d) - 1.0;
+            self.worst_hold = self.worst_hold.max(excess);
+        } else if t > self.r.t_hold + 1e-9 && d > 0.0 {
+            let excess = (-push) / (f * d) - 1.0;
+            self.worst_retraction = self.worst_retraction.max(excess);
+        }
+    }
+
+    fn score(&self, obs: &Observation) -> Metrics {
+        let mut m = Metrics::new();
+        if let Some((push, d)) = self.r.push_depth(obs) {
+            m.insert("push_force_n".into(), push);
+            m.insert("inserted_length_m".into(), d);
+        }
+        if self.scored > 0 {
+            m.insert("force_error_rel".into(), self.worst_insertion);
+        }
+        m.insert("hold_excess_rel".into(), self.worst_hold.max(0.0));
+        m.insert("retraction_excess_rel".into(), self.worst_retraction.max(0.0));
+        m
+    }
+}
+
+impl Reference for StraightRef {
+    fn scorer<'a>(&'a self, _scene: &'a Scene) -> Box<dyn Scorer + 'a> {
+        Box::new(StraightScorer {
+            r: self,
+            worst_insertion: 0.0,
+            worst_hold: f64::NEG_INFINITY,
+            worst_retraction: f64::NEG_INFINITY,
+            scored: 0,
+        })
+    }
+}
+
+/// Straight insertion, hold and retraction of a stiff needle in a gel block.
+pub const NEEDLE_STRAIGHT: Declared<StraightParams> = Declared {
+    info: ScenarioInfo {
+        id: "needle-straight",
+        description: "stiff symmetric-tip needle into a gel block at constant speed, held, retracted: base force",
+        family: Family::Coupled,
+        reference: "closed form f_cut + f_perlen d once every coupling point slides (worst relative error over the insertion past 2 mm); hold and retraction within the friction bounds",
+        primary_error: "force_error_rel",
+        params: StraightParams::SPECS,
+        sweep: LEVELS,
+        quick: 1,
+    },
+    datasets: None,
+    build,
+};
+
+fn build(p: &StraightParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
+    let id = NEEDLE_STRAIGHT.info.id;
+    let level = mesh_level(id, inputs.fidelity)?;
+    if p.tip_gap + p.depth >= p.needle_length {
+        return Err(UsageError(format!(
+            "{id}: needle_length {} m must exceed tip_gap + depth = {} m (the guide sleeve stays out of the tissue)",
+            p.needle_length,
+            p.tip_gap + p.depth
+        )));
+    }
+    if p.depth >= p.block_length || p.retraction > p.depth {
+        return Err(UsageError(format!(
+            "{id}: need depth < block_length and retraction <= depth (got {}, {}, {} m)",
+            p.depth, p.block_length, p.retraction
+        )));
+    }
+    let (w, k) = (p.block_width, 1usize << level);
+    let mut tissue_mesh = mesh::block(Vec3::new(p.block_length, w, w), [8 * k, 4 * k, 4 * k]);
+    for x in &mut tissue_mesh.nodes {
+        x.y -= 0.5 * w;
+        x.z -= 0.5 * w;
+    }
+    let tol = 1e-9 * p.block_length;
+    let entry = (0..tissue_mesh.nodes.len())
+        .find(|&i| tissue_mesh.nodes[i].norm() < tol)
+        .ok_or_else(|| UsageError(format!("{id}: no mesh node on the needle axis at the entry")))?;
+    let material = SolidMaterial {
+        youngs_modulus: p.youngs_modulus,
+        poisson_ratio: p.poisson_ratio,
+        density: p.density,
+    };
+    let mut tissue = TissueBody::new(tissue_mesh.clone(), material);
+    tissue.fixed_nodes = mesh::nodes_on_plane(&tissue_mesh, 0, p.block_length, tol);
+    let mut needle = RodBody::uniform(p.needle_length, p.needle_radius, p.needle_youngs_modulus, 0.3, 7850.0);
+    needle.base = Iso3::translation(-p.tip_gap - p.needle_length, 0.0, 0.0);
+    let v = p.insertion_speed;
+    let x_in = p.tip_gap + p.depth;
+    let t_insert = x_in / v;
+    let t_hold = t_insert + p.hold_time;
+    let t_end = t_hold + p.retraction / v;
+    let mut scene = Scene::empty(id);
+    scene.bodies = vec![needle.into(), Body::Tissue(tissue)];
+    scene.duration = t_end.max(t_hold + 1e-3);
+    scene.control = ControlTimeline {
+        keys: vec![
+            ControlKey::feed(0.0, 0.0, 0.0),
+            ControlKey::feed(t_insert, x_in, 0.0),
+            ControlKey::feed(t_hold, x_in, 0.0),
+            ControlKey::feed(t_end, x_in - p.retraction, 0.0),
+        ],
+    };
+    scene.needle = Some(NeedleTissue {
+        friction_per_length: p.friction_per_length,
+        cutting_force: p.cutting_force,
+        viscous_friction: p.viscous_friction,
+        bevel_angle: 0.0,
+    });
+    let (f_perlen, f_cut) = (p.friction_per_length, p.cutting_force);
+    // Work of the largest push over the whole stroke, ten times over.
+    let energy = 10.0 * (f_cut + f_perlen * p.depth) * x_in + 1e-9;
+    let reference = StraightRef {
+        f_perlen,
+        f_cut,
+        entry,
+        t_insert,
+        t_hold,
+    };
+    Ok(ScenarioRun::new(
+        scene,
+        reference,
+        energy,
+        p.needle_length + p.block_length,
+    ))
+}

@@ -1,0 +1,42 @@
+//! # surgbench-needle: needle insertion (the needle seed)
+//!
+//! Chentanez, Alterovitz, Ritchie, Cho, Hauser, Goldberg, Shewchuk, O'Brien,
+//! "Interactive Simulation of Surgical Needle Insertion and Steering",
+//! SIGGRAPH 2009: the corotational FEM tissue of `surgbench-fem` and the
+//! discrete elastic rod of `surgbench-der` as the needle, one linearly
+//! implicit step each (the seed's Algorithm 1), coupled monolithically at
+//! points along the shaft with stick-slip friction (the friction-state LCP,
+//! [`lcp`], the seed's Algorithm 3) and a cutting force at the tip.
+//!
+//! * Coupling points are tissue material points embedded in the tets that
+//!   contain them (barycentric weights, [`coupling`]), held on the needle
+//!   at an arclength: always in the two normal directions, along the needle
+//!   while STATIC, with the known friction force while sliding. A shaft
+//!   point joins every needle edge length of needle inside the tissue; the
+//!   tip point is the tissue at the end of the cut channel: it cuts
+//!   (`f_cut` against the tip's advance) while it slides forward, and it
+//!   cannot pull (retracting, the channel end stays behind until the tip
+//!   comes back to it).
+//! * The LCP is solved through the Schur complement on the coupling points:
+//!   the tissue block's Cholesky factor (one per step, reused while no
+//!   Jacobian block changed) and the needle's banded factor give the
+//!   Delassus matrix `W` (one tissue and one needle solve per point and
+//!   axis), and every trial is a small dense solve.
+//! * The tissue steps by backward Euler, not the seed's Newmark (see
+//!   [`factory`]: measured ringing under the hard constraints).
+//! * `Observation::hand_force` is, as for every model, the force the needle
+//!   exerts on the hand (N): inserting, it points along -x.
+//!
+//! Not yet (issue 17 and 18): tip remeshing, bevel tips, viscous shaft
+//! friction and the seed's CG solver (the factory says `Unsupported` for
+//! scenes that need the first three).
+//!
+//! Units are SI: m, kg, s, N, Pa.
+
+pub mod coupling;
+pub mod factory;
+pub mod lcp;
+pub mod model;
+
+pub use factory::NeedleFactory;
+pub use model::{LcpStats, NeedleModel, Point};

@@ -1,0 +1,480 @@
+//! [`NeedleModel`]: one coupled time step of FEM tissue and DER needle (the
+//! needle seed's Algorithm 1, Chentanez et al. 2009), with embedded coupling
+//! points and the friction-state LCP of [`crate::lcp`] solved through the
+//! Schur complement on the coupling points.
+
+use crate::coupling::{Embedded, OnNeedle, frame, locate, on_needle};
+use crate::lcp::{self, Bounds, State};
+use nalgebra::DMatrix;
+use std::collections::BTreeMap;
+use surgbench_core::{DeviceCommand, Model, NeedleTissue, Observation, SimError, StepStats, Vec3};
+use surgbench_der::DerRod;
+use surgbench_fem::FemModel;
+
+/// The seed's LCP check tolerance `tau_check` (Sec. 3.3).
+pub const TAU_CHECK: f64 = 1e-3;
+/// The seed's trial limit of the LCP (Algorithm 3).
+pub const MAX_TRIALS: usize = 10;
+
+/// A coupling point: a tissue material point held on the needle at an
+/// arclength, with its friction state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Point {
+    /// The tissue material point.
+    pub tissue: Embedded,
+    /// Needle arclength it sits at (m from the clamp).
+    pub arclength: f64,
+    /// Friction state of the last step.
+    pub state: State,
+}
+
+/// LCP statistics over the run (the seed's Table 3).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct LcpStats {
+    /// Coupled steps (steps with at least one coupling point).
+    pub steps: usize,
+    /// Configurations solved over those steps.
+    pub trials: usize,
+    /// Most configurations in one step.
+    pub max_trials: usize,
+    /// Steps that ended without a consistent configuration.
+    pub unresolved: usize,
+}
+
+/// Frame, needle and tissue stencils and start-of-step gap of one point.
+struct Geometry {
+    frame: [Vec3; 3],
+    needle: OnNeedle,
+    tissue: [usize; 4],
+    w: [f64; 4],
+    gap: Vec3,
+}
+
+/// The coupled needle-tissue model (module docs).
+pub struct NeedleModel {
+    fem: FemModel,
+    rod: DerRod,
+    tets: Vec<[usize; 4]>,
+    coupling: NeedleTissue,
+    /// Shaft points, ordered by arclength.
+    shaft: Vec<Point>,
+    /// The tip point: the tissue at the end of the cut channel. It takes
+    /// part in the LCP only while it touches the tip (the tip pushes and
+    /// cuts, it cannot pull: retracting, the channel end stays behind).
+    tip: Option<Point>,
+    /// Whether the channel end touches the tip.
+    touching: bool,
+    spacing: f64,
+    dt: f64,
+    /// Force on the clamped needle nodes from coupling points next to the
+    /// clamp (N): the hand carries it.
+    clamp_share: Vec3,
+    /// The tissue material point where the needle entered (not coupled:
+    /// it marks where the shaft inside the tissue begins).
+    entry: Option<Embedded>,
+    stats: LcpStats,
+}
+
+impl NeedleModel {
+    /// Couple a tissue and a needle (both built for the same `dt`, s) with
+    /// the interaction `coupling`; a new shaft point is dropped every
+    /// `spacing` (m) of cut.
+    pub fn new(
+        fem: FemModel,
+        rod: DerRod,
+        tets: Vec<[usize; 4]>,
+        coupling: NeedleTissue,
+        spacing: f64,
+        dt: f64,
+    ) -> Self {
+        Self {
+            fem,
+            rod,
+            tets,
+            coupling,
+            shaft: Vec::new(),
+            tip: None,
+            touching: false,
+            spacing,
+            dt,
+            clamp_share: Vec3::zeros(),
+            entry: None,
+            stats: LcpStats::default(),
+        }
+    }
+
+    /// The coupling points of the next step's LCP, ordered by arclength:
+    /// the shaft points and the tip point while it touches the tip.
+    pub fn points(&self) -> Vec<Point> {
+        let mut v = self.shaft.clone();
+        v.extend(self.tip.filter(|_| self.touching));
+        v
+    }
+
+    /// LCP statistics so far.
+    pub fn lcp_stats(&self) -> LcpStats {
+        self.stats
+    }
+
+    /// Arclength of the needle tip (m from the clamp).
+    fn tip_arclength(&self) -> f64 {
+        *self.rod.rest_arclength().last().expect("a rod has nodes")
+    }
+
+    /// Friction bounds of the LCP's points ([`Self::points`]): a shaft
+    /// point holds `f_perlen (l_{i-1} + l_i) / 2` with the arclength gaps to
+    /// its neighbours (seed Eq. 9), the first all of the shaft back to the
+    /// entry and the last all of it on to the tip, so that the bounds sum to
+    /// `f_perlen d`; the tip point holds the cutting force against the tip's
+    /// advance and nothing against its retreat (and the shaft, while no
+    /// shaft point exists yet).
+    fn bounds(&self) -> Vec<Bounds> {
+        let f = self.coupling.friction_per_length;
+        let a: Vec<f64> = self.shaft.iter().map(|p| p.arclength).collect();
+        let m = a.len();
+        let entry = self.entry_arclength().unwrap_or(0.0);
+        let tip = self.tip_arclength();
+        let mut out: Vec<Bounds> = (0..m)
+            .map(|i| {
+                let prev = if i > 0 {
+                    a[i] - a[i - 1]
+                } else {
+                    2.0 * (a[0] - entry).max(0.0)
+                };
+                let next = if i + 1 < m {
+                    a[i + 1] - a[i]
+                } else {
+                    2.0 * (tip - a[i]).max(0.0)
+                };
+                let b = f * 0.5 * (prev + next);
+                Bounds {
+                    forward: b,
+                    backward: b,
+                }
+            })
+            .collect();
+        if self.tip.is_some() && self.touching {
+            let shaft = if m == 0 { f * (tip - entry).max(0.0) } else { 0.0 };
+            out.push(Bounds {
+                forward: self.coupling.cutting_force + shaft,
+                backward: shaft,
+            });
+        }
+        out
+    }
+
+    /// Needle arclength (m) of the point of the needle nearest `x`.
+    fn arclength_of(&self, x: &Vec3) -> f64 {
+        let s = self.rod.rest_arclength();
+        let mut best = (f64::INFINITY, 0.0);
+        for k in 1..s.len() - 1 {
+            let (p0, p1) = (self.rod.node(k), self.rod.node(k + 1));
+            let e = p1 - p0;
+            let t = ((x - p0).dot(&e) / e.norm_squared()).clamp(0.0, 1.0);
+            let d = (p0 + e * t - x).norm();
+            if d < best.0 {
+                best = (d, s[k] + t * (s[k + 1] - s[k]));
+            }
+        }
+        best.1
+    }
+
+    /// Arclength (m) of the needle where it enters the tissue: the entry
+    /// material point projected on the needle; `None` before entry.
+    pub fn entry_arclength(&self) -> Option<f64> {
+        let e = self.entry?;
+        Some(self.arclength_of(&e.position(&self.tets, &self.fem.positions())))
+    }
+
+    /// Length of needle inside the tissue (m): tip minus entry arclength.
+    pub fn inserted_length(&self) -> f64 {
+        self.entry_arclength().map_or(0.0, |e| self.tip_arclength() - e)
+    }
+
+    /// The needle's position (m) at arclength `a`.
+    fn needle_point(&self, a: f64) -> Vec3 {
+        let on = on_needle(self.rod.rest_arclength(), a);
+        self.rod.node(on.nodes[0]) * on.w[0] + self.rod.node(on.nodes[1]) * on.w[1]
+    }
+
+    /// Stencils and gaps of every point at the start of the step (needle at
+    /// its warm start, tissue at `xt`).
+    fn geometry(&self, xt: &[Vec3]) -> Vec<Geometry> {
+        let s = self.rod.rest_arclength();
+        self.points()
+            .iter()
+            .map(|p| {
+                let on = on_needle(s, p.arclength);
+                let [k0, k1] = on.nodes;
+                let (x0, x1) = (self.rod.node(k0), self.rod.node(k1));
+                let needle = x0 * on.w[0] + x1 * on.w[1];
+                let tissue = p.tissue.position(&self.tets, xt);
+                Geometry {
+                    frame: frame(&(x1 - x0).normalize()),
+                    needle: on,
+                    tissue: self.tets[p.tissue.tet],
+                    w: p.tissue.w,
+                    gap: needle - tissue,
+                }
+            })
+            .collect()
+    }
+
+    /// Add `f` (world, N) on the needle at `on` into the needle's free-DOF
+    /// vector; the share on clamped nodes goes to `clamp`.
+    fn add_needle(&self, on: &OnNeedle, f: &Vec3, out: &mut [f64], clamp: &mut Vec3) {
+        for (k, w) in on.nodes.iter().zip(on.w) {
+            match self.rod.node_dof(*k) {
+                Some(d) => (0..3).for_each(|c| out[d + c] += w * f[c]),
+                None => *clamp += f * w,
+            }
+        }
+    }
+
+    /// Displacement of the needle point `on` for a free-DOF increment `dz`.
+    fn needle_motion(&self, on: &OnNeedle, dz: &[f64]) -> Vec3 {
+        on.nodes
+            .iter()
+            .zip(on.w)
+            .filter_map(|(k, w)| {
+                self.rod
+                    .node_dof(*k)
+                    .map(|d| Vec3::new(dz[d], dz[d + 1], dz[d + 2]) * w)
+            })
+            .sum()
+    }
+
+    /// Displacement of a tissue point for a DOF increment `dx`.
+    fn tissue_motion(g: &Geometry, dx: &[f64]) -> Vec3 {
+        (0..4)
+            .map(|a| Vec3::new(dx[3 * g.tissue[a]], dx[3 * g.tissue[a] + 1], dx[3 * g.tissue[a] + 2]) * g.w[a])
+            .sum()
+    }
+
+    /// The Delassus matrix `W = J_n H^{-1} J_n^T + J_t A^{-1} J_t^T` in frame
+    /// components: one needle and one tissue solve per point and axis.
+    fn delassus(&mut self, geo: &[Geometry]) -> DMatrix<f64> {
+        let m = geo.len();
+        let (nf, nt) = (self.rod.free_dofs(), 3 * self.fem.node_masses().len());
+        let mut w = DMatrix::zeros(3 * m, 3 * m);
+        let mut unused = Vec3::zeros();
+        for (i, gi) in geo.iter().enumerate() {
+            for d in 0..3 {
+                let e = gi.frame[d];
+                let mut yn = vec![0.0; nf];
+                self.add_needle(&gi.needle, &e, &mut yn, &mut unused);
+                self.rod.solve_linear(&mut yn);
+                let mut yt = vec![0.0; nt];
+                for a in 0..4 {
+                    (0..3).for_each(|c| yt[3 * gi.tissue[a] + c] += gi.w[a] * e[c]);
+                }
+                self.fem.solve_linear(&mut yt);
+                for (j, gj) in geo.iter().enumerate() {
+                    let u = self.needle_motion(&gj.needle, &yn) + Self::tissue_motion(gj, &yt);
+                    for r in 0..3 {
+                        w[(3 * j + r, 3 * i + d)] = gj.frame[r].dot(&u);
+                    }
+                }
+            }
+        }
+        // Symmetric in exact arithmetic; average away the rounding.
+        let wt = w.transpose();
+        (w + wt) * 0.5
+    }
+
+    /// After the step: sliding shaft points move along the needle by their
+    /// slip and leave it once the tip retracts past them; the tip point cuts
+    /// on while it slides forward, stays behind as the channel end when the
+    /// tip retreats and touches again when the tip comes back to it; a
+    /// shaft point joins every `spacing` along the needle inside the tissue;
+    /// a tip that has just entered the tissue gets its point.
+    fn update_points(&mut self, states: &[State], slips: &[f64]) {
+        let tip_a = self.tip_arclength();
+        let m = self.shaft.len();
+        for ((p, st), s) in self.shaft.iter_mut().zip(states).zip(slips) {
+            p.state = *st;
+            if *st != State::Static {
+                p.arclength -= s;
+            }
+        }
+        // Within rounding of the tip a point stays at it.
+        let slack = 1e-6 * self.spacing;
+        self.shaft
+            .retain(|p| p.arclength <= tip_a + slack && p.arclength >= 0.0);
+        self.shaft.iter_mut().for_each(|p| p.arclength = p.arclength.min(tip_a));
+        let xt = self.fem.positions();
+        let last = self.rod.num_nodes() - 1;
+        let tip_x = self.rod.node(last);
+        let along = (tip_x - self.rod.node(last - 1)).normalize();
+        if let Some(tip) = &mut self.tip
+            && self.touching
+            && states.len() > m
+        {
+            tip.state = states[m];
+            match tip.state {
+                State::DynamicPlus => match locate(&self.tets, &xt, &tip_x) {
+                    // It cut on: the point moves to the tissue now at the tip.
+                    Some(at) => {
+                        tip.tissue = at;
+                        tip.arclength = tip_a;
+                    }
+                    // The tip left the block through its far side.
+                    None => self.tip = None,
+                },
+                State::DynamicMinus => self.touching = false,
+                State::Static => {}
+            }
+        }
+        if let Some(tip) = &mut self.tip
+            && !self.touching
+        {
+            // The channel end, ahead of the tip along the needle's last edge.
+            tip.arclength = tip_a + (tip.tissue.position(&self.tets, &xt) - tip_x).dot(&along);
+            if tip.arclength <= tip_a {
+                tip.arclength = tip_a;
+                tip.state = State::Static;
+                self.touching = true;
+            }
+        }
+        if self.entry.is_none()
+            && let Some(at) = locate(&self.tets, &xt, &tip_x)
+        {
+            self.entry = Some(at);
+            self.tip = Some(Point {
+                tissue: at,
+                arclength: tip_a,
+                state: State::DynamicPlus,
+            });
+            self.touching = true;
+        }
+        self.add_shaft_points(&xt, tip_a);
+    }
+
+    /// Shaft points every `spacing` behind the last one (or the entry), each
+    /// placed once the tip is half a spacing past it so that no two points
+    /// crowd (nearly equal rows of `W`); the tissue point is the one on the
+    /// needle there.
+    fn add_shaft_points(&mut self, xt: &[Vec3], tip_a: f64) {
+        let Some(entry) = self.entry_arclength() else {
+            return;
+        };
+        let mut from = self.shaft.last().map_or(entry, |p| p.arclength);
+        while tip_a - from >= 1.5 * self.spacing {
+            from += self.spacing;
+            if let Some(tissue) = locate(&self.tets, xt, &self.needle_point(from)) {
+                self.shaft.push(Point {
+                    tissue,
+                    arclength: from,
+                    state: State::DynamicPlus,
+                });
+            }
+        }
+    }
+}
+
+impl Model for NeedleModel {
+    fn step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
+        let lin = self.fem.begin_linear_step(dt, cmd.load)?;
+        self.rod.begin_linear_step(dt, cmd)?;
+        let xt = self.fem.positions();
+        let mut dx = lin.residual().to_vec();
+        self.fem.solve_linear(&mut dx);
+        let mut dz: Vec<f64> = self.rod.linear_residual().iter().map(|g| -g).collect();
+        self.rod.solve_linear(&mut dz);
+        let geo = self.geometry(&xt);
+        let m = geo.len();
+        let mut stats = StepStats {
+            iterations: 0,
+            residual: 0.0,
+            converged: true,
+        };
+        self.clamp_share = Vec3::zeros();
+        let mut slips = vec![0.0; m];
+        let mut states: Vec<State> = self.points().iter().map(|p| p.state).collect();
+        if m > 0 {
+            let mut g_free = vec![0.0; 3 * m];
+            for (i, g) in geo.iter().enumerate() {
+                let u = g.gap + self.needle_motion(&g.needle, &dz) - Self::tissue_motion(g, &dx);
+                (0..3).for_each(|r| g_free[3 * i + r] = g.frame[r].dot(&u));
+            }
+            let w = self.delassus(&geo);
+            let sol = lcp::solve(&w, &g_free, &self.bounds(), &states, TAU_CHECK, MAX_TRIALS);
+            self.stats.steps += 1;
+            self.stats.trials += sol.trials;
+            self.stats.max_trials = self.stats.max_trials.max(sol.trials);
+            self.stats.unresolved += usize::from(!sol.consistent);
+            stats.iterations = sol.trials as u32;
+            stats.converged = sol.consistent;
+            // Final solves with the constraint forces on both sides.
+            let mut rn: Vec<f64> = self.rod.linear_residual().iter().map(|g| -g).collect();
+            let mut rt = lin.residual().to_vec();
+            let mut clamp = Vec3::zeros();
+            for (i, g) in geo.iter().enumerate() {
+                let f: Vec3 = (0..3).map(|r| g.frame[r] * sol.lambda[3 * i + r]).sum();
+                self.add_needle(&g.needle, &f, &mut rn, &mut clamp);
+                for a in 0..4 {
+                    (0..3).for_each(|c| rt[3 * g.tissue[a] + c] -= g.w[a] * f[c]);
+                }
+                slips[i] = sol.gap[3 * i];
+                stats.residual = stats.residual.max(sol.gap[3 * i + 1].hypot(sol.gap[3 * i + 2]));
+            }
+            self.clamp_share = clamp;
+            self.rod.solve_linear(&mut rn);
+            self.fem.solve_linear(&mut rt);
+            dz = rn;
+            dx = rt;
+            states = sol.states;
+        }
+        self.fem.end_linear_step(lin, &dx)?;
+        self.rod.end_linear_step(dt, &dz)?;
+        self.update_points(&states, &slips);
+        Ok(stats)
+    }
+
+    /// The needle as the one rod, the tissue as the one tissue body, and the
+    /// force the needle exerts on the hand at its base (N).
+    fn observe(&self) -> Observation {
+        let mut obs = self.fem.observe();
+        obs.rods = vec![self.rod.rod_obs()];
+        let (f, tq) = self.rod.hand_wrench();
+        obs.hand_force = f + self.clamp_share;
+        obs.hand_torque = tq;
+        let e = self.rod.energies();
+        obs.energy.kinetic += e.kinetic;
+        obs.energy.elastic += e.elastic;
+        obs.energy.external += e.external;
+        obs
+    }
+
+    fn dt(&self) -> f64 {
+        self.dt
+    }
+
+    /// Coupling points, how many stick, and the LCP's trials (the seed's
+    /// Table 3: mean and max per coupled step, steps left unresolved).
+    fn diagnostics(&self) -> BTreeMap<String, f64> {
+        let s = self.stats;
+        let mut d = BTreeMap::new();
+        let points = self.points();
+        d.insert("coupling_points".into(), points.len() as f64);
+        d.insert("inserted_length_m".into(), self.inserted_length());
+        for (name, state) in [
+            ("static_points", State::Static),
+            ("forward_points", State::DynamicPlus),
+            ("backward_points", State::DynamicMinus),
+        ] {
+            d.insert(name.into(), points.iter().filter(|p| p.state == state).count() as f64);
+        }
+        d.insert(
+            "lcp_trials_mean".into(),
+            if s.steps > 0 {
+                s.trials as f64 / s.steps as f64
+            } else {
+                0.0
+            },
+        );
+        d.insert("lcp_trials_max".into(), s.max_trials as f64);
+        d.insert("lcp_unresolved_steps".into(), s.unresolved as f64);
+        d
+    }
+}

@@ -1,0 +1,113 @@
+//! Straight insertion of a stiff needle into a gel block: the base force
+//! against the closed form `f_cut + f_perlen d` while every coupling point
+//! slides (seed Sec. 3.3: the friction bounds sum to `f_perlen d`), the
+//! hold, and the retraction `-f_perlen d`.
+
+mod common;
+
+use surgbench_core::{Fidelity, ModelFactory};
+use surgbench_needle::NeedleFactory;
+
+const F_PERLEN: f64 = 20.0;
+const F_CUT: f64 = 0.05;
+const V: f64 = 0.01;
+
+/// One sample per step: time, axial force the hand applies (N), inserted
+/// length (m), points sliding forward and backward, coupling points.
+struct Sample {
+    t: f64,
+    push: f64,
+    d: f64,
+    forward: f64,
+    backward: f64,
+    points: f64,
+}
+
+/// Insert 12 mm at `V`, hold 0.3 s, retract 5 mm at `V`.
+fn run(cells: [usize; 3], segments: usize) -> Vec<Sample> {
+    let x1 = 12e-3 + 1e-3;
+    let feed = [(0.0, 0.0), (x1 / V, x1), (x1 / V + 0.3, x1), (x1 / V + 0.8, x1 - 5e-3)];
+    let scene = common::scene(&feed, cells, F_PERLEN, F_CUT);
+    let f = Fidelity::parse_pairs(&[format!("segments={segments}")]).unwrap();
+    let mut m = NeedleFactory.build(&scene, &f).unwrap();
+    let dt = m.dt();
+    let n = (scene.duration / dt).round() as usize;
+    let mut out = Vec::with_capacity(n);
+    for i in 1..=n {
+        let t = i as f64 * dt;
+        m.step(dt, &scene.control.command_at(t)).unwrap();
+        let o = m.observe();
+        let d = m.diagnostics();
+        out.push(Sample {
+            t,
+            // The observation's hand force is the needle's force on the hand.
+            push: -o.hand_force.x,
+            d: d["inserted_length_m"],
+            forward: d["forward_points"],
+            backward: d["backward_points"],
+            points: d["coupling_points"],
+        });
+    }
+    out
+}
+
+#[test]
+fn base_force_follows_the_closed_form_while_sliding() {
+    let s = run([8, 4, 4], 40);
+    let t_in = 13e-3 / V;
+    let mut worst_in: f64 = 0.0;
+    let mut worst_out: f64 = 0.0;
+    let (mut sliding_in, mut sliding_out) = (0, 0);
+    for x in &s {
+        // The closed form holds while every point slides the way the needle moves.
+        if x.points >= 2.0 && x.forward == x.points && x.t < t_in {
+            sliding_in += 1;
+            let closed = F_CUT + F_PERLEN * x.d;
+            worst_in = worst_in.max((x.push - closed).abs() / closed);
+        }
+        if x.points >= 2.0 && x.backward == x.points && x.t > t_in + 0.3 {
+            sliding_out += 1;
+            let closed = -F_PERLEN * x.d;
+            worst_out = worst_out.max((x.push - closed).abs() / closed.abs());
+        }
+        // Holding and retracting, the hand force never exceeds what the
+        // friction bounds (and, pushing, the uncut tip) can hold; relative
+        // slack: the LCP's check tolerance.
+        if x.t > t_in + 1.5e-3 {
+            let bound = F_PERLEN * x.d + if x.push > 0.0 { F_CUT } else { 0.0 };
+            assert!(
+                x.push.abs() <= bound * (1.0 + 1e-3),
+                "t = {} s: {} N past {} N",
+                x.t,
+                x.push,
+                bound
+            );
+        }
+    }
+    println!(
+        "sliding steps {sliding_in} in, {sliding_out} out, worst insertion error {worst_in:.3e}, retraction {worst_out:.3e}"
+    );
+    // Most of the insertion slides (measured: 883 of 1,300 steps; the
+    // others are stick episodes of the block's axial ringing).
+    assert!(sliding_in > 500, "{sliding_in} sliding steps");
+    // Issue 17's bound; measured 0.53 % (the needle's axial inertia and the
+    // one-step linearization of its clamp reaction).
+    assert!(worst_in < 0.02, "insertion error {worst_in}");
+    // Retracting 5 mm, some point near the entry still sticks at every step
+    // (measured: no step with all points sliding back), so the closed form
+    // is checked only if such steps occur; the bound above holds throughout.
+    if sliding_out > 0 {
+        assert!(worst_out < 0.02, "retraction error {worst_out}");
+    }
+}
+
+#[test]
+fn reruns_are_bit_identical() {
+    let a = run([4, 2, 2], 20);
+    let b = run([4, 2, 2], 20);
+    assert!(
+        a.iter()
+            .zip(&b)
+            .all(|(x, y)| x.push.to_bits() == y.push.to_bits() && x.d.to_bits() == y.d.to_bits())
+    );
+}
