@@ -404,6 +404,30 @@ mod tests {
         );
     }
 
+    /// Choices are names in sweeps and fixed knobs; a numeric code for a
+    /// choice, an unknown name or a value of another type is refused
+    /// before anything runs, naming the key and the choices.
+    #[test]
+    fn model_choices_are_names() {
+        let base = "name = \"x\"\nmodels = [\"pbd-rod\"]\n[[scenario]]\nid = \"cantilever-gravity\"\n";
+        let jobs = |models: &str| Comparison::parse(&format!("{base}{models}")).and_then(|c| c.jobs(true, None));
+        let j = jobs(
+            "[scenario.models.pbd-rod]\nquick_sweep = { segments = [10], solver = [\"gauss-seidel\", \"direct\"] }\n",
+        )
+        .unwrap();
+        let f: Vec<String> = j.iter().map(|j| j.fidelity.to_string()).collect();
+        assert_eq!(f, ["segments=10;solver=gauss-seidel", "segments=10;solver=direct"]);
+        let e = jobs("[scenario.models.pbd-rod]\nquick_sweep = { solver = [0, 1] }\n").unwrap_err();
+        assert!(
+            e.0.contains("`solver` takes a name, one of: gauss-seidel, direct"),
+            "{e}"
+        );
+        let e = jobs("[scenario.models.pbd-rod]\nfidelity = { solver = \"jacobi\" }\n").unwrap_err();
+        assert!(e.0.contains("unknown choice `jacobi`"), "{e}");
+        let e = jobs("[scenario.models.pbd-rod]\nfidelity = { solver = true }\n").unwrap_err();
+        assert!(e.0.contains("a number or a choice name"), "{e}");
+    }
+
     #[test]
     fn sweep_is_a_cartesian_product() {
         let g: Grid = [
