@@ -25,11 +25,11 @@
 
 use crate::registry;
 use crate::resolve::ResolvedRun;
-use crate::scenario::{Params, UsageError};
+use crate::scenario::{Params, Scenario, UsageError};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::Path;
-use surgbench_core::{Fidelity, Setting};
+use surgbench_core::{Fidelity, ModelFactory, Scene, Setting};
 
 /// Which models a comparison runs.
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -187,6 +187,28 @@ fn expand(grid: &Grid) -> Result<Vec<Fidelity>, UsageError> {
     Ok(out)
 }
 
+/// One sweep point of model `f` on scenario `sc` (default instance
+/// `scene`), checked before anything runs: the instance at its mesh level
+/// (geometry may depend on the fidelity), its knobs against the model's
+/// declared keys and choices, its step count at the full fidelity's `dt`.
+fn check_point(
+    sc: &dyn Scenario,
+    params: &Params,
+    scene: &Scene,
+    f: &dyn ModelFactory,
+    fid: &Fidelity,
+) -> Result<(), UsageError> {
+    let named = |e: String| UsageError(format!("scenario `{}`, model `{}`: {e}", sc.id(), f.id()));
+    if fid.mesh_level.is_some() {
+        sc.instantiate_at(params, fid)?;
+    }
+    fid.validate_extras(f.fidelity_keys()).map_err(|e| named(e.0))?;
+    if let Some(dt) = f.default_fidelity(scene).merged(fid).dt {
+        crate::runner::check_steps(scene.duration, dt).map_err(|e| named(e.0))?;
+    }
+    Ok(())
+}
+
 impl Comparison {
     /// Parse a comparison file; errors name the file and the problem.
     pub fn load(path: &Path) -> Result<Self, UsageError> {
@@ -322,17 +344,7 @@ impl Comparison {
                 let fixed = expand(&me.fidelity.iter().map(|(k, v)| (k.clone(), vec![v.clone()])).collect())?;
                 for fid in sweep {
                     let fid = fid.merged(&fixed[0]);
-                    // Geometry may depend on the fidelity (tissue meshes):
-                    // validate that instance too, before anything runs.
-                    if fid.mesh_level.is_some() {
-                        sc.instantiate_at(&params, &fid)?;
-                    }
-                    fid.validate_extras(f.fidelity_keys())
-                        .map_err(|e| UsageError(format!("scenario `{}`, model `{id}`: {}", sc.id(), e.0)))?;
-                    if let Some(dt) = f.default_fidelity(inst.scene()).merged(&fid).dt {
-                        crate::runner::check_steps(inst.scene().duration, dt)
-                            .map_err(|e| UsageError(format!("scenario `{}`, model `{id}`: {}", sc.id(), e.0)))?;
-                    }
+                    check_point(sc, &params, inst.scene(), f, &fid)?;
                     jobs.push(Job {
                         scenario: sc.id().into(),
                         params: overrides.clone(),
