@@ -250,6 +250,23 @@ fn short(v: f64) -> String {
     }
 }
 
+/// One fidelity key of `list`: its name, what it takes and its doc; a
+/// choice key then lists each name with what it selects.
+fn list_key(k: &surgbench_core::FidelityKey) {
+    use surgbench_core::KeyKind;
+    match k.kind {
+        KeyKind::Number => say!("  {:<14}fidelity {:<14} {}", "", k.name, k.doc),
+        KeyKind::Switch | KeyKind::Choice(_) => {
+            say!("  {:<14}fidelity {:<14} {}: {}", "", k.name, k.values(), k.doc)
+        }
+    }
+    if let KeyKind::Choice(choices) = k.kind {
+        for c in choices {
+            say!("  {:<29}{:<18} {}", "", format!("= \"{}\"", c.name), c.doc);
+        }
+    }
+}
+
 fn list() {
     say!("SCENARIOS");
     for s in registry::scenarios() {
@@ -273,7 +290,7 @@ fn list() {
         say!("  {:<12} [{}] {}", f.id(), f.family().name(), f.description());
         say!("  {:<12} capabilities: {}", "", caps.join(", "));
         for k in f.fidelity_keys() {
-            say!("  {:<14}fidelity {:<14} {}", "", k.name, k.doc);
+            list_key(k);
         }
     }
     say!("\nCOMPARISONS");

@@ -143,6 +143,20 @@ fn bad_input_is_a_clear_usage_error_and_writes_nothing() {
         ],
         "unknown fidelity key `warp`",
     );
+    // A choice is a name: an unknown one, or the numeric code it once had,
+    // is refused listing the names.
+    let fem = ["--scenario", "block-compression", "--model", "fem", "--fidelity"];
+    case(
+        &[&fem[..], &["solver=lu"]].concat(),
+        "unknown choice `lu` (choices: direct, cg)",
+    );
+    case(&[&fem[..], &["solver=1"]].concat(), "takes a name, one of: direct, cg");
+    case(&[&fem[..], &["factor_reuse=2"]].concat(), "switch: 0 (off) or 1 (on)");
+    case(&[&fem[..], &["cg_tol=tight"]].concat(), "`cg_tol` takes a number");
+    case(
+        &[&fem[..], &["solver=Direct"]].concat(),
+        "neither a number nor a choice name",
+    );
     // A missing required argument is clap's usage error (exit 2 too).
     let o = surgbench(&["run-one", "--scenario", "cantilever-gravity"]);
     assert_eq!(o.status.code(), Some(2));
@@ -307,4 +321,14 @@ fn list_shows_the_comparisons_and_nothing_unreadable() {
         );
     }
     assert!(!out.contains("unreadable") && !out.contains("  Cargo "), "{out}");
+    // each choice key shows its names, each name what it selects
+    assert!(
+        out.contains("fidelity solver         direct | cg: linear solver of each Newton step"),
+        "{out}"
+    );
+    assert!(
+        out.contains("= \"nested-dissection\" geometric nested dissection"),
+        "{out}"
+    );
+    assert!(out.contains("fidelity pbd            0 | 1: "), "{out}");
 }

@@ -14,19 +14,22 @@
 //! sweep = { segments = [10, 20, 40, 80] }    # cartesian product (optional)
 //! quick_sweep = { segments = [10, 20] }      # used by --quick (optional)
 //! [scenario.models.der]                      # per-model sweep (optional)
-//! sweep = { segments = [10, 20], integrator = [0, 1] }
+//! sweep = { segments = [10, 20], integrator = ["backward-euler", "newmark"] }
 //! ```
+//!
+//! A model's choice takes its name (`surgbench list` shows each key's
+//! names); numbers are for numeric knobs and 0/1 switches.
 //!
 //! A model appears in a comparison by being registered and supporting its
 //! scenarios; only a comparison that lists models explicitly names them.
 
 use crate::registry;
 use crate::resolve::ResolvedRun;
-use crate::scenario::{Params, UsageError};
+use crate::scenario::{Params, Scenario, UsageError};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::Path;
-use surgbench_core::Fidelity;
+use surgbench_core::{Fidelity, ModelFactory, Scene, Setting};
 
 /// Which models a comparison runs.
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -43,12 +46,12 @@ pub enum ModelSelection {
 #[serde(deny_unknown_fields)]
 pub struct ModelEntry {
     /// Replaces the scenario sweep for this model.
-    pub sweep: Option<BTreeMap<String, Vec<f64>>>,
+    pub sweep: Option<Grid>,
     /// Replaces the quick sweep for this model.
-    pub quick_sweep: Option<BTreeMap<String, Vec<f64>>>,
+    pub quick_sweep: Option<Grid>,
     /// Fixed knobs added to every sweep point of this model.
     #[serde(default)]
-    pub fidelity: BTreeMap<String, f64>,
+    pub fidelity: BTreeMap<String, Setting>,
 }
 
 /// One scenario of a comparison.
@@ -61,9 +64,9 @@ pub struct ScenarioEntry {
     #[serde(default)]
     pub params: BTreeMap<String, f64>,
     /// Fidelity sweep (cartesian product); default: the scenario's own.
-    pub sweep: Option<BTreeMap<String, Vec<f64>>>,
+    pub sweep: Option<Grid>,
     /// Sweep for `--quick`; default: the scenario's quick sweep.
-    pub quick_sweep: Option<BTreeMap<String, Vec<f64>>>,
+    pub quick_sweep: Option<Grid>,
     /// Per-model settings.
     #[serde(default)]
     pub models: BTreeMap<String, ModelEntry>,
@@ -93,7 +96,7 @@ pub struct HapticEntry {
     pub params: BTreeMap<String, f64>,
     /// Fidelity knobs.
     #[serde(default)]
-    pub fidelity: BTreeMap<String, f64>,
+    pub fidelity: BTreeMap<String, Setting>,
     /// Loop rate (Hz), default 1000.
     #[serde(default = "default_rate")]
     pub rate_hz: f64,
@@ -162,7 +165,10 @@ pub struct Job {
     pub unsupported: Option<String>,
 }
 
-fn expand(grid: &BTreeMap<String, Vec<f64>>) -> Result<Vec<Fidelity>, UsageError> {
+/// A fidelity sweep: each knob's values (numbers or choice names).
+pub type Grid = BTreeMap<String, Vec<Setting>>;
+
+fn expand(grid: &Grid) -> Result<Vec<Fidelity>, UsageError> {
     let mut out = vec![Fidelity::default()];
     for (k, vals) in grid {
         if vals.is_empty() {
@@ -172,13 +178,35 @@ fn expand(grid: &BTreeMap<String, Vec<f64>>) -> Result<Vec<Fidelity>, UsageError
         for f in &out {
             for v in vals {
                 let mut g = f.clone();
-                g.set(k, *v).map_err(|e| UsageError(e.0))?;
+                g.set_setting(k, v.clone()).map_err(|e| UsageError(e.0))?;
                 next.push(g);
             }
         }
         out = next;
     }
     Ok(out)
+}
+
+/// One sweep point of model `f` on scenario `sc` (default instance
+/// `scene`), checked before anything runs: the instance at its mesh level
+/// (geometry may depend on the fidelity), its knobs against the model's
+/// declared keys and choices, its step count at the full fidelity's `dt`.
+fn check_point(
+    sc: &dyn Scenario,
+    params: &Params,
+    scene: &Scene,
+    f: &dyn ModelFactory,
+    fid: &Fidelity,
+) -> Result<(), UsageError> {
+    let named = |e: String| UsageError(format!("scenario `{}`, model `{}`: {e}", sc.id(), f.id()));
+    if fid.mesh_level.is_some() {
+        sc.instantiate_at(params, fid)?;
+    }
+    fid.validate_extras(f.fidelity_keys()).map_err(|e| named(e.0))?;
+    if let Some(dt) = f.default_fidelity(scene).merged(fid).dt {
+        crate::runner::check_steps(scene.duration, dt).map_err(|e| named(e.0))?;
+    }
+    Ok(())
 }
 
 impl Comparison {
@@ -313,20 +341,10 @@ impl Comparison {
                     None if quick => sc.quick_sweep(),
                     None => sc.sweep(),
                 };
-                let fixed = expand(&me.fidelity.iter().map(|(k, v)| (k.clone(), vec![*v])).collect())?;
+                let fixed = expand(&me.fidelity.iter().map(|(k, v)| (k.clone(), vec![v.clone()])).collect())?;
                 for fid in sweep {
                     let fid = fid.merged(&fixed[0]);
-                    // Geometry may depend on the fidelity (tissue meshes):
-                    // validate that instance too, before anything runs.
-                    if fid.mesh_level.is_some() {
-                        sc.instantiate_at(&params, &fid)?;
-                    }
-                    fid.check_extras(f.fidelity_keys())
-                        .map_err(|e| UsageError(format!("scenario `{}`, model `{id}`: {}", sc.id(), e.0)))?;
-                    if let Some(dt) = f.default_fidelity(inst.scene()).merged(&fid).dt {
-                        crate::runner::check_steps(inst.scene().duration, dt)
-                            .map_err(|e| UsageError(format!("scenario `{}`, model `{id}`: {}", sc.id(), e.0)))?;
-                    }
+                    check_point(sc, &params, inst.scene(), f, &fid)?;
                     jobs.push(Job {
                         scenario: sc.id().into(),
                         params: overrides.clone(),
@@ -398,15 +416,40 @@ mod tests {
         );
     }
 
+    /// Choices are names in sweeps and fixed knobs; a numeric code for a
+    /// choice, an unknown name or a value of another type is refused
+    /// before anything runs, naming the key and the choices.
+    #[test]
+    fn model_choices_are_names() {
+        let base = "name = \"x\"\nmodels = [\"pbd-rod\"]\n[[scenario]]\nid = \"cantilever-gravity\"\n";
+        let jobs = |models: &str| Comparison::parse(&format!("{base}{models}")).and_then(|c| c.jobs(true, None));
+        let j = jobs(
+            "[scenario.models.pbd-rod]\nquick_sweep = { segments = [10], solver = [\"gauss-seidel\", \"direct\"] }\n",
+        )
+        .unwrap();
+        let f: Vec<String> = j.iter().map(|j| j.fidelity.to_string()).collect();
+        assert_eq!(f, ["segments=10;solver=gauss-seidel", "segments=10;solver=direct"]);
+        let e = jobs("[scenario.models.pbd-rod]\nquick_sweep = { solver = [0, 1] }\n").unwrap_err();
+        assert!(
+            e.0.contains("`solver` takes a name, one of: gauss-seidel, direct"),
+            "{e}"
+        );
+        let e = jobs("[scenario.models.pbd-rod]\nfidelity = { solver = \"jacobi\" }\n").unwrap_err();
+        assert!(e.0.contains("unknown choice `jacobi`"), "{e}");
+        let e = jobs("[scenario.models.pbd-rod]\nfidelity = { solver = true }\n").unwrap_err();
+        assert!(e.0.contains("a number or a choice name"), "{e}");
+    }
+
     #[test]
     fn sweep_is_a_cartesian_product() {
-        let g: BTreeMap<String, Vec<f64>> = [
-            ("segments".to_string(), vec![10.0, 20.0]),
-            ("dt".to_string(), vec![1e-3, 1e-4]),
+        let g: Grid = [
+            ("segments".to_string(), vec![10.0.into(), 20.0.into()]),
+            ("dt".to_string(), vec![1e-3.into(), 1e-4.into()]),
         ]
         .into();
         let f = expand(&g).unwrap();
         assert_eq!(f.len(), 4);
-        assert!(expand(&[("dt".to_string(), vec![-1.0])].into()).is_err());
+        assert!(expand(&[("dt".to_string(), vec![(-1.0).into()])].into()).is_err());
+        assert!(expand(&[("dt".to_string(), vec!["fast".into()])].into()).is_err());
     }
 }

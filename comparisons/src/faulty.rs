@@ -4,8 +4,8 @@
 //! is `1` (the CLI tests set it); never part of a normal comparison.
 
 use surgbench_core::{
-    BuildError, Capability, DeviceCommand, Family, Fidelity, Model, ModelFactory, Observation, RodObs, Scene, SimError,
-    StepStats, Vec3,
+    BuildError, Capability, DeviceCommand, Family, Fidelity, Model, ModelFactory, Observation, RodObs, Scene, Settings,
+    SimError, StepStats, Vec3,
 };
 
 /// How the model misbehaves.
@@ -110,13 +110,13 @@ impl ModelFactory for FaultyFactory {
             ..Default::default()
         }
     }
-    fn build(&self, scene: &Scene, fidelity: &Fidelity) -> Result<Box<dyn Model>, BuildError> {
+    fn build_resolved(&self, scene: &Scene, settings: &Settings) -> Result<Box<dyn Model>, BuildError> {
         let length = scene.rods().next().map(|r| r.length).unwrap_or(1.0);
         Ok(Box::new(Faulty {
             fault: self.0,
             steps: 0,
             t: 0.0,
-            dt: fidelity.dt.unwrap_or(1e-3),
+            dt: settings.fidelity().dt.unwrap_or(1e-3),
             length,
         }))
     }

@@ -13,6 +13,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::process::Command;
+use surgbench_core::Setting;
 
 /// One gated workload.
 #[derive(Debug, Clone, Deserialize, Serialize)]
@@ -25,9 +26,9 @@ pub struct Workload {
     /// Parameter overrides.
     #[serde(default)]
     pub params: BTreeMap<String, f64>,
-    /// Fidelity knobs.
+    /// Fidelity knobs (numbers or choice names).
     #[serde(default)]
-    pub fidelity: BTreeMap<String, f64>,
+    pub fidelity: BTreeMap<String, Setting>,
     /// Steps counted (the gate also counts twice as many).
     pub steps: usize,
 }
@@ -252,5 +253,30 @@ mod tests {
         assert_eq!(back.by_cpu.len(), 2);
         assert_eq!(back.by_cpu["AMD Y"]["der/a/"], 12.0);
         assert!(Baseline::parse("{not json").is_err());
+    }
+
+    /// Every committed baseline count belongs to a workload of
+    /// benches/gate.toml: a renamed fidelity knob or choice changes the
+    /// workload's key, and must rename the baseline's key with it rather
+    /// than leave the count orphaned (and the workload ungated).
+    #[test]
+    fn committed_baseline_keys_are_workload_keys() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+        let cfg = load_config(&root.join("benches/gate.toml")).unwrap();
+        let keys: Vec<String> = cfg.workload.iter().map(Workload::key).collect();
+        assert!(
+            keys.contains(&"pbd-rod/cantilever-tip-load/segments=100;solver=direct;substeps=4".to_string()),
+            "{keys:?}"
+        );
+        let text = std::fs::read_to_string(root.join("benches/gate-baseline.json")).unwrap();
+        let base = Baseline::parse(&text).unwrap();
+        for (cpu, counts) in &base.by_cpu {
+            for k in counts.keys() {
+                assert!(
+                    keys.contains(k),
+                    "baseline of `{cpu}` has `{k}`, no workload of gate.toml: {keys:?}"
+                );
+            }
+        }
     }
 }

@@ -1,7 +1,9 @@
 //! One run, resolved and validated once: scenario and model looked up,
-//! parameters resolved, the fidelity's model extras checked, the scenario
-//! instantiated, the model asked once whether it supports the scene, and the
-//! model's default fidelity merged under the request.
+//! parameters resolved, the fidelity's model extras checked against the
+//! model's declared keys and choices, the scenario instantiated, and the
+//! model's settings [`surgbench_core::resolve`]d once (does it support the
+//! scene, is the scene valid, its defaults merged under the request). The
+//! model's build receives those settings as they are.
 //!
 //! The CLI (`run-one`, `haptic`, `gate-workload`), the gate, the benches and
 //! the comparison's job list all start from a [`ResolvedRun`].
@@ -9,7 +11,7 @@
 use crate::registry;
 use crate::runner::{self, RunOptions, RunSummary};
 use crate::scenario::{Params, Scenario, ScenarioRun, UsageError};
-use surgbench_core::{Fidelity, Model, ModelFactory, Scene};
+use surgbench_core::{BuildError, Fidelity, Model, ModelFactory, Scene, Setting, Settings};
 
 /// A scenario x model x parameters x fidelity, ready to build and run.
 pub struct ResolvedRun {
@@ -23,8 +25,9 @@ pub struct ResolvedRun {
     pub requested: Fidelity,
     /// The instantiated scenario (scene and reference).
     pub run: ScenarioRun,
-    /// The model's answer to `check(scene)`: `Err(reason)` when it cannot run it.
-    pub support: Result<(), String>,
+    /// The model's settings resolved for the scene, or `Err(reason)` when
+    /// the model cannot run it (its `check`).
+    pub support: Result<Settings, String>,
     /// The full fidelity: the model's defaults for the scene overlaid with the request.
     pub fidelity: Fidelity,
 }
@@ -33,8 +36,8 @@ impl ResolvedRun {
     /// Resolve `scenario` x `model` with parameter `overrides` at `fidelity`;
     /// an unknown id, parameter or knob, an out-of-range value, or more
     /// steps at the full fidelity's `dt` than [`runner::MAX_STEPS`], is a
-    /// [`UsageError`]. A scene the model does not support is not an error:
-    /// see [`ResolvedRun::support`].
+    /// [`UsageError`], and so is a choice by an undeclared name. A scene the
+    /// model does not support is not an error: see [`ResolvedRun::support`].
     pub fn new(
         scenario: &str,
         model: &str,
@@ -45,11 +48,18 @@ impl ResolvedRun {
         let factory = registry::model(model)?;
         let params = Params::resolve(sc.id(), sc.params(), overrides)?;
         fidelity
-            .check_extras(factory.fidelity_keys())
+            .validate_extras(factory.fidelity_keys())
             .map_err(|e| UsageError(format!("model `{model}`: {}", e.0)))?;
         let run = sc.instantiate_at(&params, &fidelity)?;
-        let support = factory.check(run.scene()).map_err(|u| u.reason);
-        let full = factory.default_fidelity(run.scene()).merged(&fidelity);
+        let support = match surgbench_core::resolve(factory, run.scene(), &fidelity) {
+            Ok(settings) => Ok(settings),
+            Err(BuildError::Unsupported(u)) => Err(u.reason),
+            Err(e) => return Err(UsageError(format!("model `{model}`: {e}"))),
+        };
+        let full = match &support {
+            Ok(settings) => settings.fidelity().clone(),
+            Err(_) => factory.default_fidelity(run.scene()).merged(&fidelity),
+        };
         if let Some(dt) = full.dt {
             runner::check_steps(run.scene().duration, dt)
                 .map_err(|e| UsageError(format!("{scenario} with `{model}`: {e}")))?;
@@ -81,11 +91,11 @@ impl ResolvedRun {
         scenario: &str,
         model: &str,
         overrides: &[(String, f64)],
-        knobs: impl IntoIterator<Item = (&'a String, &'a f64)>,
+        knobs: impl IntoIterator<Item = (&'a String, &'a Setting)>,
     ) -> Result<Self, UsageError> {
         let mut fid = Fidelity::default();
         for (k, v) in knobs {
-            fid.set(k, *v).map_err(|e| UsageError(e.0))?;
+            fid.set_setting(k, v.clone()).map_err(|e| UsageError(e.0))?;
         }
         Self::new(scenario, model, overrides, fid)
     }
@@ -95,19 +105,19 @@ impl ResolvedRun {
         self.run.scene()
     }
 
-    /// A fresh model at the full fidelity, for callers that need one to go
-    /// on: an unsupported scene (`"der cannot run lame-tube: ..."`) or a
-    /// failed build is a [`UsageError`].
+    /// A fresh model from the resolved settings, for callers that need one
+    /// to go on: an unsupported scene (`"der cannot run lame-tube: ..."`)
+    /// or a failed build is a [`UsageError`].
     pub fn build(&self) -> Result<Box<dyn Model>, UsageError> {
-        if let Err(reason) = &self.support {
-            return Err(UsageError(format!(
+        let settings = self.support.as_ref().map_err(|reason| {
+            UsageError(format!(
                 "{} cannot run {}: {reason}",
                 self.factory.id(),
                 self.scenario.id()
-            )));
-        }
+            ))
+        })?;
         self.factory
-            .build(self.scene(), &self.fidelity)
+            .build_resolved(self.scene(), settings)
             .map_err(|e| UsageError(e.to_string()))
     }
 
@@ -118,7 +128,7 @@ impl ResolvedRun {
             &self.params,
             &self.run,
             self.factory,
-            self.support.clone(),
+            self.support.as_ref().map_err(String::clone),
             &self.fidelity,
             opts,
         )

@@ -10,8 +10,10 @@ use nalgebra::UnitQuaternion;
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Instant;
-use surgbench_core::{BuildError, DeviceCommand, Fidelity, Iso3, LoadRamp, ModelFactory, Observation, Scene, Vec3};
-use surgbench_reports::{End, NodeState, Outcome, Status};
+use surgbench_core::{
+    BuildError, DeviceCommand, Fidelity, Iso3, LoadRamp, ModelFactory, Observation, Scene, Setting, Settings, Vec3,
+};
+use surgbench_reports::{End, FidelityValue, NodeState, Outcome, Status};
 
 /// A run cannot count as settled before this many steps: a model at rest
 /// before the load acts must not pass for one at equilibrium.
@@ -378,19 +380,34 @@ pub fn run_single(
     opts: &RunOptions,
 ) -> Result<RunSummary, UsageError> {
     let scene = run.scene();
-    let support = factory.check(scene).map_err(|u| u.reason);
-    let fid = factory.default_fidelity(scene).merged(fidelity);
-    run_checked(scenario, params, run, factory, support, &fid, opts)
+    let (support, fid) = match surgbench_core::resolve(factory, scene, fidelity) {
+        Ok(settings) => {
+            let fid = settings.fidelity().clone();
+            (Ok(settings), fid)
+        }
+        Err(BuildError::Unsupported(u)) => (Err(u.reason), factory.default_fidelity(scene).merged(fidelity)),
+        Err(e) => return Err(bad_build(factory, e)),
+    };
+    run_checked(
+        scenario,
+        params,
+        run,
+        factory,
+        support.as_ref().map_err(String::clone),
+        &fid,
+        opts,
+    )
 }
 
-/// [`run_single`] for a scene whose `factory.check` answer (`support`) and
-/// full fidelity (`fid`, the model's defaults merged) are already known.
+/// [`run_single`] for a scene whose model settings are already resolved
+/// (`support`: the settings, or why the model cannot run the scene), with
+/// `fid` the full fidelity (the model's defaults merged) to report.
 pub fn run_checked(
     scenario: &dyn Scenario,
     params: &Params,
     run: &ScenarioRun,
     factory: &dyn ModelFactory,
-    support: Result<(), String>,
+    support: Result<&Settings, String>,
     fid: &Fidelity,
     opts: &RunOptions,
 ) -> Result<RunSummary, UsageError> {
@@ -399,7 +416,7 @@ pub fn run_checked(
         model: factory.id().into(),
         params: params.values().clone(),
         overrides: params.overrides_string(),
-        fidelity: fid.pairs().into_iter().collect(),
+        fidelity: fid.pairs().into_iter().map(|(k, v)| (k, knob_value(v))).collect(),
         fidelity_string: fid.to_string(),
         outcome: Outcome {
             steps: Some(0.0),
@@ -412,12 +429,15 @@ pub fn run_checked(
         repeats: opts.repeats.max(1),
         ..Default::default()
     };
-    if let Err(reason) = support {
-        s.status = Status::Unsupported;
-        s.reason = reason;
-        return Ok(s);
-    }
-    let reps = match run_repeats(scenario, run, factory, fid, opts)? {
+    let settings = match support {
+        Ok(settings) => settings,
+        Err(reason) => {
+            s.status = Status::Unsupported;
+            s.reason = reason;
+            return Ok(s);
+        }
+    };
+    let reps = match run_repeats(scenario, run, factory, settings, opts)? {
         Ok(reps) => reps,
         Err(reason) => {
             s.status = Status::Unsupported;
@@ -464,15 +484,29 @@ type Built = (Box<dyn surgbench_core::Model>, f64);
 
 /// A fresh model for the scene and its build time (ms). The inner `Err` is
 /// the model's refusal to build the scene (unsupported), the outer a bad knob.
-fn build_model(factory: &dyn ModelFactory, scene: &Scene, fid: &Fidelity) -> Result<Result<Built, String>, UsageError> {
+fn build_model(
+    factory: &dyn ModelFactory,
+    scene: &Scene,
+    settings: &Settings,
+) -> Result<Result<Built, String>, UsageError> {
     let t0 = Instant::now();
-    match factory.build(scene, fid) {
+    match factory.build_resolved(scene, settings) {
         Ok(m) => Ok(Ok((m, t0.elapsed().as_secs_f64() * 1e3))),
         Err(BuildError::Unsupported(u)) => Ok(Err(u.reason)),
-        Err(BuildError::BadParameter { name, reason }) => Err(UsageError(format!(
-            "model `{}`: bad parameter `{name}`: {reason}",
-            factory.id()
-        ))),
+        Err(e) => Err(bad_build(factory, e)),
+    }
+}
+
+/// A model's bad knob or scene as a [`UsageError`] naming the model.
+fn bad_build(factory: &dyn ModelFactory, e: BuildError) -> UsageError {
+    UsageError(format!("model `{}`: {e}", factory.id()))
+}
+
+/// A fidelity knob as the run summary records it.
+fn knob_value(v: Setting) -> FidelityValue {
+    match v {
+        Setting::Number(x) => FidelityValue::Number(x),
+        Setting::Choice(n) => FidelityValue::Name(n),
     }
 }
 
@@ -481,11 +515,11 @@ fn run_repeats(
     scenario: &dyn Scenario,
     run: &ScenarioRun,
     factory: &dyn ModelFactory,
-    fid: &Fidelity,
+    settings: &Settings,
     opts: &RunOptions,
 ) -> Result<Result<Repeats, String>, UsageError> {
     let primary = scenario.primary_error();
-    let (mut model, build_ms) = match build_model(factory, run.scene(), fid)? {
+    let (mut model, build_ms) = match build_model(factory, run.scene(), settings)? {
         Ok(m) => m,
         Err(reason) => return Ok(Err(reason)),
     };
@@ -503,7 +537,7 @@ fn run_repeats(
         first,
     };
     for r in 1..opts.repeats.max(1) {
-        let mut model = match build_model(factory, run.scene(), fid)? {
+        let mut model = match build_model(factory, run.scene(), settings)? {
             Ok((m, _)) => m,
             Err(reason) => return Ok(Err(reason)),
         };

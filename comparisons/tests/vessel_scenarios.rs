@@ -11,7 +11,7 @@ use surgbench_comparisons::scenario::{Params, Scenario};
 use surgbench_comparisons::scenarios::vessel::{self, ARCH_INSERTION, ArchParams, ENTRY_S, WIRE_RADIUS};
 use surgbench_core::{
     BuildError, Capability, DeviceCommand, Family, Fidelity, Mat3, Model, ModelFactory, Observation, RodObs, Scene,
-    SimError, StepStats, Vec3,
+    Settings, SimError, StepStats, Vec3,
 };
 
 type PathFn = Arc<dyn Fn(f64) -> Vec3 + Send + Sync>;
@@ -82,7 +82,7 @@ impl ModelFactory for TestFactory {
         f.set("dt", 1e-3).unwrap();
         f
     }
-    fn build(&self, scene: &Scene, _f: &Fidelity) -> Result<Box<dyn Model>, BuildError> {
+    fn build_resolved(&self, scene: &Scene, _s: &Settings) -> Result<Box<dyn Model>, BuildError> {
         Ok((self.build)(scene))
     }
 }

@@ -18,7 +18,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::ReportError;
-use crate::summary::{End, Outcome, RunSummary, Status};
+use crate::summary::{End, FidelityValue, Outcome, RunSummary, Status};
 
 /// One row per scenario x model x fidelity: what the harness measured for one run.
 ///
@@ -76,7 +76,7 @@ impl ResultRow {
     /// This row with what a run's `summary.json` says: its outcome, metrics,
     /// resolved fidelity (`fidelity` and the knob columns) and `run_dir`.
     pub fn with_summary(mut self, s: RunSummary, run_dir: String) -> Self {
-        let knob = |k: &str| s.fidelity.get(k).copied();
+        let knob = |k: &str| s.fidelity.get(k).and_then(FidelityValue::number);
         (self.segments, self.mesh_level, self.dt, self.iterations) =
             (knob("segments"), knob("mesh_level"), knob("dt"), knob("iterations"));
         if !s.fidelity_string.is_empty() {

@@ -43,4 +43,4 @@ pub use error::ReportError;
 pub use format::{fmt_sig, fmt_tick, log_ticks};
 pub use haptic::{HAPTIC_COLUMNS, HapticRow, read_haptic_csv, write_haptic_csv};
 pub use render::{render, render_dir};
-pub use summary::{End, NodeState, Outcome, RunSummary, Sample, Status, Trip};
+pub use summary::{End, FidelityValue, NodeState, Outcome, RunSummary, Sample, Status, Trip};

@@ -247,6 +247,27 @@ pub struct NodeState {
     pub x: [f64; 3],
 }
 
+/// One fidelity knob of a run as `summary.json` records it: a number, or a
+/// model's choice by name (`"solver": "cg"`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum FidelityValue {
+    /// A number (segments, `dt`, a tolerance, a 0/1 switch...).
+    Number(f64),
+    /// A choice by name.
+    Name(String),
+}
+
+impl FidelityValue {
+    /// The number, if it is one.
+    pub fn number(&self) -> Option<f64> {
+        match self {
+            Self::Number(v) => Some(*v),
+            Self::Name(_) => None,
+        }
+    }
+}
+
 /// Everything one run measured: `run-one`'s `summary.json`, read back by the
 /// batch runner into a `results.csv` row.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
@@ -260,7 +281,7 @@ pub struct RunSummary {
     /// Overrides as given (`k=v;k=v`).
     pub overrides: String,
     /// Resolved fidelity (model defaults overlaid with the request).
-    pub fidelity: BTreeMap<String, f64>,
+    pub fidelity: BTreeMap<String, FidelityValue>,
     /// Resolved fidelity as a string.
     pub fidelity_string: String,
     /// What the run measured.

@@ -1,6 +1,6 @@
 use surgbench_core::{
     BuildError, Capability, DeviceCommand, Family, Fidelity, Mat3, Model, ModelFactory, Observation, RodBody, RodObs,
-    Scene, SimError, StepStats, Vec3,
+    Scene, Settings, SimError, StepStats, Vec3,
 };
 
 /// `rigid-rod`: the infinitely stiff limit of a clamped rod. It never
@@ -31,11 +31,12 @@ impl ModelFactory for RigidRodFactory {
             ..Default::default()
         }
     }
-    fn build(&self, scene: &Scene, fidelity: &Fidelity) -> Result<Box<dyn Model>, BuildError> {
-        self.check(scene).map_err(BuildError::Unsupported)?;
-        let full = self.default_fidelity(scene).merged(fidelity);
-        full.check_extras(self.fidelity_keys())
-            .map_err(|e| BuildError::bad("fidelity", e.0))?;
+    // Built from settings resolved once (by the harness, or by the trait's
+    // `build` for library callers): `check` accepted the scene, the scene is
+    // valid, the fidelity is the defaults overlaid with the request and
+    // every extra a declared key (this model declares none).
+    fn build_resolved(&self, scene: &Scene, settings: &Settings) -> Result<Box<dyn Model>, BuildError> {
+        let full = settings.fidelity();
         let rod = scene.rods().next().expect("check: one rod").clone();
         let segments = full.segments.unwrap_or(20);
         Ok(Box::new(RigidRod {

@@ -3,7 +3,7 @@
 //! pushed 1 cm in and out (period 2 s) and rotated at 1 rad/s, SDF collision and friction
 //! (C_f = 0.3) on every step, default 10 relaxation sweeps, dt = 1 ms.
 //! Target (DESIGN.md): <= 0.05 ms/step on one core. Two cases: the default
-//! clamp-axis boxes (`frame=1`) and the link-frame boxes (`frame=2`).
+//! clamp-axis boxes (`frame=clamp`) and the link-frame boxes (`frame=link`).
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
@@ -39,12 +39,12 @@ fn command(t: f64) -> DeviceCommand {
 fn bench(c: &mut Criterion) {
     let s = scene();
     let dt = 1e-3;
-    // frame=1: the default clamp-axis boxes; frame=2: the link-frame boxes
+    // frame=clamp: the default clamp-axis boxes; frame=link: the link-frame boxes
     // (body-frame offsets, wall contact inside the relaxation iterations),
     // the mode a curved vessel needs
     for (frame, name) in [
-        ("frame=1", "chainmail_step_100_links_tube_push_rotate"),
-        ("frame=2", "chainmail_step_100_links_tube_push_rotate_link_frame"),
+        ("frame=clamp", "chainmail_step_100_links_tube_push_rotate"),
+        ("frame=link", "chainmail_step_100_links_tube_push_rotate_link_frame"),
     ] {
         let f = Fidelity::parse_pairs(&["segments=100", "dt=0.001", frame]).unwrap();
         let mut m = ChainmailFactory.build(&s, &f).unwrap();

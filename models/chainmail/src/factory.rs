@@ -5,7 +5,8 @@ use crate::rules::LinkParams;
 use crate::wire::{BoxFrame, ChainmailWire, WireConfig};
 use crate::{mapping, volume};
 use surgbench_core::{
-    BuildError, Capability, Family, Fidelity, FidelityKey, Model, ModelFactory, Scene, Unsupported, Vec3,
+    BuildError, Capability, Choice, Family, Fidelity, FidelityKey, Model, ModelFactory, Scene, Settings, Unsupported,
+    Vec3,
 };
 
 /// Default links over the free length.
@@ -47,46 +48,77 @@ const CAPABILITIES: &[Capability] = &[
 ];
 
 const KEYS: &[FidelityKey] = &[
-    FidelityKey {
-        name: "frame",
-        doc: "valid-box axes: 2 = each sponsor's link frame (rest offsets in the body frame; needed for rest curvature and curved vessels; default with rest curvature or beta_mapping=1), 1 = base-clamp axes (default otherwise, rotation-invariant), 0 = world axes exactly as the paper writes them",
-    },
-    FidelityKey {
-        name: "beta",
-        doc: "uniform shear limit beta >= 0 for every link, replacing the material mapping (alpha_min = alpha_max = 1)",
-    },
-    FidelityKey {
-        name: "beta_mapping",
-        doc: "material -> box mapping: 0 = weight-calibrated (default; calibrated on the gravity cantilever, bends ~0.2 deg per 5 mm link), 1 = navigation (per-link bend limit Delta eps_y / r from the core's recoverable strain; nothing fitted; use with frame=2 in vessels)",
-    },
-    FidelityKey {
-        name: "yield_strain",
-        doc: "recoverable strain eps_y of the core for beta_mapping=1 (default 0.06, superelastic nitinol; ~0.004 for stainless steel)",
-    },
-    FidelityKey {
-        name: "vessel_spacing",
-        doc: "moving vessels: spacing h (m) of the volumetric chain-mail lattice of wall and blood elements (default 0.5 mm)",
-    },
-    FidelityKey {
-        name: "vessel_slack",
-        doc: "moving vessels: compression/stretch slack s of the vessel's links, alpha_min = 1 - s, alpha_max = 1 + s (default 0.1)",
-    },
-    FidelityKey {
-        name: "vessel_beta",
-        doc: "moving vessels: shear limit beta of the vessel's links (default 0.1)",
-    },
-    FidelityKey {
-        name: "haptic_k",
-        doc: "haptic gain k (N/m) of F_feedback = k (friction displacement + first-link length change); default E A / Delta",
-    },
+    FidelityKey::choice(
+        "frame",
+        "axes of the valid boxes",
+        &[
+            Choice::new("world", "world axes exactly as the paper writes them"),
+            Choice::new(
+                "clamp",
+                "the base clamp's axes (default without rest curvature or with beta_mapping=weight; rotation-invariant)",
+            ),
+            Choice::new(
+                "link",
+                "each sponsor's link frame, rest offsets in the body frame (needed for rest curvature and curved vessels; default with rest curvature or beta_mapping=navigation)",
+            ),
+        ],
+    ),
+    FidelityKey::number(
+        "beta",
+        "uniform shear limit beta >= 0 for every link, replacing the material mapping (alpha_min = alpha_max = 1)",
+    ),
+    FidelityKey::choice(
+        "beta_mapping",
+        "material -> box mapping",
+        &[
+            Choice::new(
+                "weight",
+                "weight-calibrated (default; calibrated on the gravity cantilever, bends ~0.2 deg per 5 mm link)",
+            ),
+            Choice::new(
+                "navigation",
+                "per-link bend limit Delta eps_y / r from the core's recoverable strain; nothing fitted; use with frame=link in vessels",
+            ),
+        ],
+    ),
+    FidelityKey::number(
+        "yield_strain",
+        "recoverable strain eps_y of the core for beta_mapping=navigation (default 0.06, superelastic nitinol; ~0.004 for stainless steel)",
+    ),
+    FidelityKey::number(
+        "vessel_spacing",
+        "moving vessels: spacing h (m) of the volumetric chain-mail lattice of wall and blood elements (default 0.5 mm)",
+    ),
+    FidelityKey::number(
+        "vessel_slack",
+        "moving vessels: compression/stretch slack s of the vessel's links, alpha_min = 1 - s, alpha_max = 1 + s (default 0.1)",
+    ),
+    FidelityKey::number(
+        "vessel_beta",
+        "moving vessels: shear limit beta of the vessel's links (default 0.1)",
+    ),
+    FidelityKey::number(
+        "haptic_k",
+        "haptic gain k (N/m) of F_feedback = k (friction displacement + first-link length change); default E A / Delta",
+    ),
 ];
+
+/// The names of `frame`, as box frames.
+const FRAMES: &[(&str, BoxFrame)] = &[
+    ("world", BoxFrame::World),
+    ("clamp", BoxFrame::Base),
+    ("link", BoxFrame::Link),
+];
+
+/// The names of `beta_mapping`: whether it is the navigation mapping.
+const MAPPINGS: &[(&str, bool)] = &[("weight", false), ("navigation", true)];
 
 impl ModelFactory for ChainmailFactory {
     fn id(&self) -> &'static str {
         "chainmail"
     }
     fn description(&self) -> &'static str {
-        "generalized 3D chain-mail guidewire (geometric valid boxes + relaxation; boxes in the clamp frame, the paper's world axes with frame=0)"
+        "generalized 3D chain-mail guidewire (geometric valid boxes + relaxation; boxes in the clamp frame, the paper's world axes with frame=world)"
     }
     fn family(&self) -> Family {
         Family::Rod
@@ -98,8 +130,8 @@ impl ModelFactory for ChainmailFactory {
         KEYS
     }
     /// Segments, dt and sweeps as the calibration used them; a rod with rest
-    /// curvature gets the link-frame boxes (`frame=2`), the only frame that
-    /// can hold a curved rest shape.
+    /// curvature gets the link-frame boxes (`frame=link`), the only frame
+    /// that can hold a curved rest shape.
     fn default_fidelity(&self, scene: &Scene) -> Fidelity {
         let mut f = Fidelity {
             segments: Some(DEFAULT_SEGMENTS),
@@ -111,7 +143,7 @@ impl ModelFactory for ChainmailFactory {
             .rods()
             .any(|r| r.sections.iter().any(|s| s.rest_curvature != [0.0, 0.0]));
         if curved {
-            f.extras.insert("frame".into(), 2.0);
+            f.extras.insert("frame".into(), "link".into());
         }
         f
     }
@@ -136,34 +168,28 @@ impl ModelFactory for ChainmailFactory {
         Ok(())
     }
 
-    fn build(&self, scene: &Scene, fidelity: &Fidelity) -> Result<Box<dyn Model>, BuildError> {
-        self.check(scene)?;
-        scene.validate().map_err(|e| BuildError::bad("scene", e))?;
-        fidelity
-            .check_extras(KEYS)
-            .map_err(|e| BuildError::bad("fidelity", e.to_string()))?;
-        let f = self.default_fidelity(scene).merged(fidelity);
-        let beta_mapping = mapping::BetaMapping::from_codes(
-            f.extra("beta_mapping", 0.0),
-            f.extra("yield_strain", mapping::NITINOL_RECOVERABLE_STRAIN),
-        )
-        .map_err(|e| BuildError::bad("beta_mapping", e))?;
+    fn build_resolved(&self, scene: &Scene, settings: &Settings) -> Result<Box<dyn Model>, BuildError> {
+        let f = settings.fidelity();
+        let beta_mapping = if settings.pick("beta_mapping", MAPPINGS, false)? {
+            mapping::BetaMapping::navigation(settings.number_or("yield_strain", mapping::NITINOL_RECOVERABLE_STRAIN))
+                .map_err(|e| BuildError::bad("yield_strain", e))?
+        } else {
+            mapping::BetaMapping::Weight
+        };
         // the navigation mapping bounds the bend between successive links:
         // only the link-frame boxes mean that, so it defaults to them
         let frame_default = match beta_mapping {
-            mapping::BetaMapping::Navigation { .. } => 2.0,
-            mapping::BetaMapping::Weight => 1.0,
+            mapping::BetaMapping::Navigation { .. } => BoxFrame::Link,
+            mapping::BetaMapping::Weight => BoxFrame::Base,
         };
-        let frame_code = f.extra("frame", frame_default);
-        let frame = BoxFrame::from_code(frame_code)
-            .ok_or_else(|| BuildError::bad("frame", format!("must be 0, 1 or 2, got {frame_code}")))?;
+        let frame = settings.pick("frame", FRAMES, frame_default)?;
         let rod = scene.rods().next().expect("checked: one rod");
         if frame != BoxFrame::Link && rod.sections.iter().any(|s| s.rest_curvature != [0.0, 0.0]) {
             return Err(BuildError::Unsupported(Unsupported::new(
-                "rest curvature needs the link-frame boxes (frame=2): world/base-axis boxes keep every link near the clamp direction",
+                "rest curvature needs the link-frame boxes (frame=link): world/clamp-axis boxes keep every link near the clamp direction",
             )));
         }
-        let beta_override = f.extras.get("beta").copied();
+        let beta_override = settings.number("beta");
         if let Some(b) = beta_override
             && (b.is_nan() || b < 0.0)
         {
@@ -177,12 +203,12 @@ impl ModelFactory for ChainmailFactory {
             beta_constant: mapping::BETA_CONSTANT,
             beta_mapping,
             beta_override,
-            haptic_k: f.extras.get("haptic_k").copied(),
+            haptic_k: settings.number("haptic_k"),
         };
         let mut w = ChainmailWire::new(rod, scene.gravity, &scene.environment, &cfg)
             .map_err(|e| BuildError::bad("chainmail", e))?;
         if let (Some(sdf), Some(motion)) = (&scene.environment.vessel, &scene.environment.vessel_motion) {
-            let slack = f.extra("vessel_slack", DEFAULT_VESSEL_SLACK);
+            let slack = settings.number_or("vessel_slack", DEFAULT_VESSEL_SLACK);
             if !(0.0..1.0).contains(&slack) {
                 return Err(BuildError::bad(
                     "vessel_slack",
@@ -192,14 +218,14 @@ impl ModelFactory for ChainmailFactory {
             // the wire's reach: its length plus the deepest feed, plus a
             // margin of the lattice's own width around the tip
             let feed = scene.control.keys.iter().map(|k| k.insertion).fold(0.0, f64::max);
-            let spacing = f.extra("vessel_spacing", DEFAULT_VESSEL_SPACING);
+            let spacing = settings.number_or("vessel_spacing", DEFAULT_VESSEL_SPACING);
             let lcfg = volume::LatticeConfig {
                 spacing,
                 reach: rod.length + feed + 10.0 * spacing,
                 links: LinkParams {
                     alpha_min: 1.0 - slack,
                     alpha_max: 1.0 + slack,
-                    beta: f.extra("vessel_beta", DEFAULT_VESSEL_BETA),
+                    beta: settings.number_or("vessel_beta", DEFAULT_VESSEL_BETA),
                 },
                 iterations: cfg.iterations,
             };

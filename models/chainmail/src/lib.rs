@@ -12,15 +12,15 @@
 //!
 //! The harness calls [`ChainmailFactory`] (id `chainmail`). What the model
 //! is and is not:
-//! - the paper writes the boxes axis-aligned in **world axes** (`frame=0`);
+//! - the paper writes the boxes axis-aligned in **world axes** (`frame=world`);
 //!   that rule is not rotation-invariant (rigidly moving a scene changes the
 //!   answer, by 1.4 mm in the test) and keeps every link within about
 //!   `atan(beta)` of its rest direction, so the wire cannot follow a curved
-//!   vessel. The default `frame=1` aligns the boxes with the base clamp: the
+//!   vessel. The default `frame=clamp` aligns the boxes with the base clamp: the
 //!   paper's rule exactly on scenes whose rod starts along +x (every rod
 //!   statics scene), and it moves rigidly with the scene, as the harness's
 //!   conformance suite requires of every model;
-//! - `frame=2` ([`BoxFrame::Link`], the default for a rod with rest
+//! - `frame=link` ([`BoxFrame::Link`], the default for a rod with rest
 //!   curvature) puts the boxes and rest offsets in each sponsor link's body
 //!   frame turned by the rest curvature, resolves wall contact inside the
 //!   relaxation iterations and holds a pre-curved (J) rest shape exactly.
@@ -30,7 +30,7 @@
 //!   compresses/stretches links past the harness's 5 % watchdog;
 //!   After friction, one length-restoring pass (boxes swept from the clamp,
 //!   then the wall) keeps friction from compressing links; on
-//!   `coronary-tortuous` (`beta_mapping=1`, 40 segments) the stretch
+//!   `coronary-tortuous` (`beta_mapping=navigation`, 40 segments) the stretch
 //!   watchdog still trips at 43.7 s: the tip meets the wall ~25 deg head-on
 //!   while its box lets it turn ~6 deg from its neighbour, so no position
 //!   of the tip satisfies both box and wall and the wall wins (tip link
@@ -39,8 +39,8 @@
 //!   of that displacement against the boxes and the relaxation: it depends
 //!   on `dt`, `iterations` and `segments`, not only on the material;
 //! - `beta` comes from the material by [`mapping`]: by default
-//!   (`beta_mapping=0`) with one constant calibrated on the gravity
-//!   cantilever ([`calibration::calibration_scene`]); `beta_mapping=1` bounds
+//!   (`beta_mapping=weight`) with one constant calibrated on the gravity
+//!   cantilever ([`calibration::calibration_scene`]); `beta_mapping=navigation` bounds
 //!   each link's bend by `Delta eps_y / r`, the largest elastic curvature of
 //!   the core (nothing fitted): it can follow a vessel but no longer sags
 //!   like the cantilever (see [`mapping`] for both and their trade-off);

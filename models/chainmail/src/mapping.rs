@@ -107,13 +107,13 @@ pub const NITINOL_RECOVERABLE_STRAIN: f64 = 0.06;
 pub const MAX_BEND_PER_LINK: f64 = std::f64::consts::FRAC_PI_4;
 
 /// How the material parameters become `alpha_min`, `alpha_max`, `beta`
-/// (fidelity extra `beta_mapping`: 0 or 1).
+/// (fidelity extra `beta_mapping`: `weight` or `navigation`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum BetaMapping {
-    /// `0`: load scale = the wire's weight, one constant `C` calibrated on
+    /// `weight`: load scale = the wire's weight, one constant `C` calibrated on
     /// the gravity cantilever ([`link_params`]).
     Weight,
-    /// `1`: bend limit per link from the largest elastic curvature
+    /// `navigation`: bend limit per link from the largest elastic curvature
     /// `eps_y / r` of the section ([`navigation_link_params`]); nothing
     /// fitted.
     Navigation {
@@ -123,23 +123,18 @@ pub enum BetaMapping {
 }
 
 impl BetaMapping {
-    /// From the fidelity extras `beta_mapping` (0 or 1) and `yield_strain`
-    /// (only read by mapping 1). Errors name the bad value.
-    pub fn from_codes(code: f64, yield_strain: f64) -> Result<BetaMapping, String> {
-        match code {
-            0.0 => Ok(BetaMapping::Weight),
-            1.0 => {
-                if !(yield_strain > 0.0 && yield_strain < 1.0) {
-                    return Err(format!("yield_strain must be in (0, 1), got {yield_strain}"));
-                }
-                Ok(BetaMapping::Navigation { yield_strain })
-            }
-            _ => Err(format!("beta_mapping must be 0 (weight) or 1 (navigation), got {code}")),
+    /// The navigation mapping (fidelity `beta_mapping = "navigation"`) for
+    /// the core's recoverable strain `yield_strain` (fidelity extra of the
+    /// same name); an error names a value outside (0, 1).
+    pub fn navigation(yield_strain: f64) -> Result<BetaMapping, String> {
+        if !(yield_strain > 0.0 && yield_strain < 1.0) {
+            return Err(format!("yield_strain must be in (0, 1), got {yield_strain}"));
         }
+        Ok(BetaMapping::Navigation { yield_strain })
     }
 
     /// Link parameters of a section and link length `delta` (m) under this
-    /// mapping; `c` is the weight mapping's constant (unused by mapping 1).
+    /// mapping; `c` is the weight mapping's constant (unused by the navigation mapping).
     pub fn link_params(&self, sec: &RodSection, delta: f64, c: f64) -> LinkParams {
         match *self {
             BetaMapping::Weight => link_params(sec, delta, c),

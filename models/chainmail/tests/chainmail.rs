@@ -226,7 +226,7 @@ fn gravity_sag_depends_on_fidelity() {
     assert!((out[0].3 - 1.0).abs() < 1e-5, "{out:?}");
 }
 
-fn rigid_answer(frame: f64) -> f64 {
+fn rigid_answer(frame: &str) -> f64 {
     let mut s = cantilever(9.81);
     s.environment.vessel = Some(Arc::new(StraightTube {
         origin: Vec3::new(0.0, 0.0, 0.0),
@@ -236,7 +236,7 @@ fn rigid_answer(frame: f64) -> f64 {
     let iso = Iso3::new(Vec3::new(0.1, -0.2, 0.3), Vec3::new(0.3, -0.5, 0.7));
     let st = s.transformed(&iso);
     let mut f = Fidelity::default();
-    f.extras.insert("frame".into(), frame);
+    f.extras.insert("frame".into(), frame.into());
     let mut a = ChainmailFactory.build(&s, &f).unwrap();
     let mut b = ChainmailFactory.build(&st, &f).unwrap();
     for k in 0..300 {
@@ -258,8 +258,8 @@ fn rigid_answer(frame: f64) -> f64 {
 
 #[test]
 fn rigid_motion_of_the_scene_base_frame_passes_world_frame_fails() {
-    let world = rigid_answer(0.0);
-    let base = rigid_answer(1.0);
+    let world = rigid_answer("world");
+    let base = rigid_answer("clamp");
     eprintln!("max node discrepancy after a rigid motion: world axes {world:.3e} m, base axes {base:.3e} m");
     // base frame: equivariant up to rounding of the 3x3 rotations (~1e-16 m per op)
     assert!(base < 1e-12, "base-frame rule not rigid-motion invariant: {base}");
@@ -503,7 +503,7 @@ fn factory_refuses_what_it_cannot_do() {
     assert!(f.check(&s).is_ok());
     assert!(f.build(&s, &Fidelity::default()).is_ok());
     assert!(matches!(
-        f.build(&s, &Fidelity::parse_pairs(&["frame=1"]).unwrap()),
+        f.build(&s, &Fidelity::parse_pairs(&["frame=clamp"]).unwrap()),
         Err(BuildError::Unsupported(_))
     ));
     let bad = |pairs: &[&str]| {
@@ -516,19 +516,20 @@ fn factory_refuses_what_it_cannot_do() {
     assert!(bad(&["frame=3"]));
     assert!(bad(&["beta=-1"]));
     assert!(bad(&["beta_mapping=2"]));
-    assert!(bad(&["beta_mapping=1", "yield_strain=0"]));
-    assert!(bad(&["beta_mapping=1", "yield_strain=1.5"]));
+    assert!(bad(&["beta_mapping=calibrated"]));
+    assert!(bad(&["beta_mapping=navigation", "yield_strain=0"]));
+    assert!(bad(&["beta_mapping=navigation", "yield_strain=1.5"]));
     assert!(
         f.build(
             &base,
-            &Fidelity::parse_pairs(&["beta_mapping=1", "yield_strain=0.004"]).unwrap()
+            &Fidelity::parse_pairs(&["beta_mapping=navigation", "yield_strain=0.004"]).unwrap()
         )
         .is_ok()
     );
     assert!(
         f.build(
             &base,
-            &Fidelity::parse_pairs(&["segments=7", "iterations=3", "dt=0.001", "frame=1", "beta=0.2"]).unwrap()
+            &Fidelity::parse_pairs(&["segments=7", "iterations=3", "dt=0.001", "frame=clamp", "beta=0.2"]).unwrap()
         )
         .is_ok()
     );
@@ -782,7 +783,7 @@ fn navigation_mapping_allows_more_bend_than_the_weight_mapping() {
 
 #[test]
 fn link_frame_friction_leaves_the_links_their_length() {
-    // frame=2, navigation mapping (alpha = 1: every link exactly Delta
+    // frame=link, navigation mapping (alpha = 1: every link exactly Delta
     // along its box axis): a wire on the bottom of a horizontal tube pushed
     // 2 cm with a sticking friction factor. Friction corrects contact
     // elements after the relaxation; the final length-restoring pass puts
@@ -793,7 +794,7 @@ fn link_frame_friction_leaves_the_links_their_length() {
         s.environment.flow = None;
         s
     };
-    let f = Fidelity::parse_pairs(&["frame=2", "beta_mapping=1"]).unwrap();
+    let f = Fidelity::parse_pairs(&["frame=link", "beta_mapping=navigation"]).unwrap();
     let mut m = ChainmailFactory.build(&s, &f).unwrap();
     let (mut worst, mut pen, mut contacts): (f64, f64, usize) = (0.0, 0.0, 0);
     for k in 1..=200 {
@@ -807,7 +808,7 @@ fn link_frame_friction_leaves_the_links_their_length() {
         contacts = contacts.max(o.contacts.len());
         pen = o.contacts.iter().map(|c| c.penetration).fold(pen, f64::max);
     }
-    eprintln!("frame=2, C_f = 1: largest |stretch| {worst:e}, penetration {pen:e} m, contacts {contacts}");
+    eprintln!("frame=link, C_f = 1: largest |stretch| {worst:e}, penetration {pen:e} m, contacts {contacts}");
     assert!(contacts > 0, "no contacts: the test does not exercise friction");
     // measured 4.8e-4 (the last normal wall projection moves nodes across
     // the links); the same run without the restoring pass gives 0.105
@@ -859,7 +860,7 @@ fn wire_stays_in_a_swinging_tube() {
     s.environment.vessel_motion = Some(motion.clone());
     s.environment.contact.margin = 5e-4;
     let mut f = Fidelity::default();
-    f.set("beta_mapping", 1.0).unwrap();
+    f.set_setting("beta_mapping", "navigation".into()).unwrap();
     let mut m = ChainmailFactory.build(&s, &f).unwrap();
     let (mut worst, mut lag): (f64, f64) = (f64::NEG_INFINITY, 0.0);
     let dt = 0.01;

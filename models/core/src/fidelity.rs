@@ -1,25 +1,107 @@
 //! Fidelity knobs: the settings that trade speed for accuracy. The harness
 //! sweeps them; each model resolves the ones it leaves unset to its defaults.
+//! A model-specific extra is a number or a choice by name ([`Setting`]).
 //!
 //! ```
-//! use surgbench_core::Fidelity;
-//! let f = Fidelity::parse_pairs(&["segments=20", "dt=1e-3", "damping=2"]).unwrap();
+//! use surgbench_core::{Fidelity, Setting};
+//! let f = Fidelity::parse_pairs(&["segments=20", "dt=1e-3", "damping=2", "solver=cg"]).unwrap();
 //! assert_eq!(f.segments, Some(20));
-//! assert_eq!(f.extras["damping"], 2.0);
+//! assert_eq!(f.extras["damping"], Setting::Number(2.0));
+//! assert_eq!(f.extras["solver"], Setting::Choice("cg".into()));
+//! assert_eq!(f.to_string(), "segments=20;dt=0.001;damping=2;solver=cg");
 //! assert!(Fidelity::parse_pairs(&["dt=-1"]).is_err());
+//! assert!(Fidelity::parse_pairs(&["dt=fast"]).is_err());
 //! ```
 
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fmt;
 
-/// A model-specific fidelity knob accepted in [`Fidelity::extras`].
-#[derive(Debug, Clone, Copy)]
-pub struct FidelityKey {
-    /// Name used on the command line and in comparison TOML.
-    pub name: &'static str,
-    /// One line: what it does, its unit, its default.
-    pub doc: &'static str,
+/// The value of a model-specific fidelity extra: a number (a count, a
+/// tolerance, a unit quantity, an on/off switch 0/1) or a choice by name
+/// (`solver = "cg"`). Numbers read and print as `f64` does; a choice is
+/// lowercase letters, digits and `-`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum Setting {
+    /// A number.
+    Number(f64),
+    /// A choice by name.
+    Choice(String),
+}
+
+impl Setting {
+    /// Read a command-line value: a number if it parses as one, else a
+    /// choice name.
+    pub fn parse(text: &str) -> Result<Self, FidelityError> {
+        let t = text.trim();
+        match t.parse::<f64>() {
+            Ok(v) => Ok(Self::Number(v)),
+            Err(_) if is_choice_name(t) => Ok(Self::Choice(t.to_string())),
+            Err(_) => Err(FidelityError(format!(
+                "`{t}` is neither a number nor a choice name (lowercase letters, digits, `-`)"
+            ))),
+        }
+    }
+}
+
+/// A choice name: lowercase ASCII letters, digits and `-`, starting with a letter.
+fn is_choice_name(s: &str) -> bool {
+    s.starts_with(|c: char| c.is_ascii_lowercase())
+        && s.chars()
+            .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-')
+}
+
+impl From<f64> for Setting {
+    fn from(v: f64) -> Self {
+        Self::Number(v)
+    }
+}
+
+impl From<&str> for Setting {
+    fn from(v: &str) -> Self {
+        Self::Choice(v.to_string())
+    }
+}
+
+impl fmt::Display for Setting {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Number(v) => write!(f, "{v}"),
+            Self::Choice(n) => f.write_str(n),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for Setting {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl serde::de::Visitor<'_> for V {
+            type Value = Setting;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a number or a choice name")
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<Setting, E> {
+                Ok(Setting::Number(v))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<Setting, E> {
+                Ok(Setting::Number(v as f64))
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<Setting, E> {
+                Ok(Setting::Number(v as f64))
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<Setting, E> {
+                if is_choice_name(v) {
+                    Ok(Setting::Choice(v.to_string()))
+                } else {
+                    Err(E::custom(format!(
+                        "`{v}` is not a choice name (lowercase letters, digits, `-`)"
+                    )))
+                }
+            }
+        }
+        d.deserialize_any(V)
+    }
 }
 
 /// Discretization, time step, solver effort, and model-specific extras.
@@ -34,7 +116,7 @@ pub struct Fidelity {
     /// Solver iterations (Newton, PBD, relaxation...: the model says which).
     pub iterations: Option<usize>,
     /// Named model-specific knobs (see [`crate::ModelFactory::fidelity_keys`]).
-    pub extras: BTreeMap<String, f64>,
+    pub extras: BTreeMap<String, Setting>,
 }
 
 /// A fidelity string could not be parsed or a value is out of range.
@@ -50,8 +132,29 @@ impl fmt::Display for FidelityError {
 impl std::error::Error for FidelityError {}
 
 impl Fidelity {
-    /// Set one knob by name, validating its range.
+    /// Set one knob by name to a number, validating its range.
     pub fn set(&mut self, key: &str, value: f64) -> Result<(), FidelityError> {
+        self.set_setting(key, Setting::Number(value))
+    }
+
+    /// Set one knob by name to a number or a choice; the discretization,
+    /// `dt` and `iterations` take numbers in range, an extra any finite
+    /// number or choice name (its model's keys say which it takes).
+    pub fn set_setting(&mut self, key: &str, value: Setting) -> Result<(), FidelityError> {
+        let value = match value {
+            Setting::Choice(name) => {
+                if !is_choice_name(&name) {
+                    return Err(FidelityError(format!(
+                        "fidelity `{key}`: `{name}` is not a choice name (lowercase letters, digits, `-`)"
+                    )));
+                }
+                if matches!(key, "segments" | "mesh_level" | "iterations" | "dt") {
+                    return Err(FidelityError(format!("fidelity `{key}` takes a number, got `{name}`")));
+                }
+                return self.set_extra(key, Setting::Choice(name));
+            }
+            Setting::Number(v) => v,
+        };
         if !value.is_finite() {
             return Err(FidelityError(format!("fidelity `{key}` must be finite")));
         }
@@ -74,13 +177,17 @@ impl Fidelity {
                 }
                 self.dt = Some(value)
             }
-            other => {
-                if other.is_empty() || !other.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
-                    return Err(FidelityError(format!("bad fidelity key `{other}`")));
-                }
-                self.extras.insert(other.to_string(), value);
-            }
+            other => self.set_extra(other, Setting::Number(value))?,
         }
+        Ok(())
+    }
+
+    /// Insert a model-specific extra under a well-formed key.
+    fn set_extra(&mut self, key: &str, value: Setting) -> Result<(), FidelityError> {
+        if key.is_empty() || !key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+            return Err(FidelityError(format!("bad fidelity key `{key}`")));
+        }
+        self.extras.insert(key.to_string(), value);
         Ok(())
     }
 
@@ -92,11 +199,8 @@ impl Fidelity {
             let (k, v) = p
                 .split_once('=')
                 .ok_or_else(|| FidelityError(format!("fidelity `{p}` is not of the form key=value")))?;
-            let v: f64 = v
-                .trim()
-                .parse()
-                .map_err(|_| FidelityError(format!("fidelity `{k}`: `{v}` is not a number")))?;
-            f.set(k.trim(), v)?;
+            let v = Setting::parse(v).map_err(|e| FidelityError(format!("fidelity `{}`: {e}", k.trim())))?;
+            f.set_setting(k.trim(), v)?;
         }
         Ok(f)
     }
@@ -117,50 +221,30 @@ impl Fidelity {
             f.iterations = other.iterations;
         }
         for (k, v) in &other.extras {
-            f.extras.insert(k.clone(), *v);
+            f.extras.insert(k.clone(), v.clone());
         }
         f
     }
 
     /// All set knobs as `(name, value)` pairs, in a fixed order.
-    pub fn pairs(&self) -> Vec<(String, f64)> {
+    pub fn pairs(&self) -> Vec<(String, Setting)> {
         let mut v = Vec::new();
         if let Some(s) = self.segments {
-            v.push(("segments".to_string(), s as f64));
+            v.push(("segments".to_string(), Setting::Number(s as f64)));
         }
         if let Some(s) = self.mesh_level {
-            v.push(("mesh_level".to_string(), s as f64));
+            v.push(("mesh_level".to_string(), Setting::Number(s as f64)));
         }
         if let Some(s) = self.dt {
-            v.push(("dt".to_string(), s));
+            v.push(("dt".to_string(), Setting::Number(s)));
         }
         if let Some(s) = self.iterations {
-            v.push(("iterations".to_string(), s as f64));
+            v.push(("iterations".to_string(), Setting::Number(s as f64)));
         }
         for (k, x) in &self.extras {
-            v.push((k.clone(), *x));
+            v.push((k.clone(), x.clone()));
         }
         v
-    }
-
-    /// Reject extras the model does not declare (typos must not pass silently).
-    pub fn check_extras(&self, known: &[FidelityKey]) -> Result<(), FidelityError> {
-        for k in self.extras.keys() {
-            if !known.iter().any(|kk| kk.name == k) {
-                let names: Vec<_> = known.iter().map(|k| k.name).collect();
-                return Err(FidelityError(format!(
-                    "unknown fidelity key `{k}` (this model knows segments, mesh_level, dt, iterations{}{})",
-                    if names.is_empty() { "" } else { ", " },
-                    names.join(", ")
-                )));
-            }
-        }
-        Ok(())
-    }
-
-    /// An extra knob or its default.
-    pub fn extra(&self, name: &str, default: f64) -> f64 {
-        self.extras.get(name).copied().unwrap_or(default)
     }
 }
 

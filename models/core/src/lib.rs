@@ -36,16 +36,17 @@ pub mod observation;
 pub mod rng;
 pub mod scene;
 pub mod sdf;
+pub mod settings;
 pub mod sphere_contact;
 pub mod vessel;
 
 pub use capability::{Capability, Family};
 pub use error::{BuildError, SimError, Unsupported};
-pub use fidelity::{Fidelity, FidelityKey};
+pub use fidelity::{Fidelity, Setting};
 pub use flow::FlowField;
 pub use material::SolidMaterial;
 pub use mesh::TetMesh;
-pub use model::{EnergyProbe, Model, ModelFactory, StepStats};
+pub use model::{EnergyProbe, Model, ModelFactory, StepStats, resolve};
 pub use needle::NeedleTissue;
 pub use observation::{ContactObs, EnergyObs, Observation, RodObs, TissueObs};
 pub use scene::{
@@ -53,6 +54,7 @@ pub use scene::{
     Settle, SphereIndenter, TissueBody,
 };
 pub use sdf::Sdf;
+pub use settings::{Choice, FidelityKey, KeyKind, Settings};
 
 /// 3-vector of `f64` (SI units).
 pub type Vec3 = nalgebra::Vector3<f64>;

@@ -2,13 +2,16 @@
 //!
 //! [`ModelFactory`] says what a model can do and builds it; [`Model`] steps
 //! and observes. Optional hooks have default methods, so a minimal model
-//! implements `step` and `observe` and nothing else.
+//! implements `step` and `observe` and nothing else. [`resolve`] checks a
+//! scene and fidelity against a factory once; the harness calls it, and so
+//! does [`ModelFactory::build`] for library callers.
 
 use crate::capability::{Capability, Family};
 use crate::error::{BuildError, SimError, Unsupported};
-use crate::fidelity::{Fidelity, FidelityKey};
+use crate::fidelity::Fidelity;
 use crate::observation::Observation;
 use crate::scene::{DeviceCommand, Scene};
+use crate::settings::{FidelityKey, Settings};
 
 /// What one step cost.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -74,7 +77,8 @@ pub trait ModelFactory: Send + Sync {
     fn family(&self) -> Family;
     /// What the model can simulate.
     fn capabilities(&self) -> &'static [Capability];
-    /// Model-specific fidelity extras it accepts.
+    /// Model-specific fidelity extras it accepts, each a number, a switch
+    /// or a choice by name; [`resolve`] rejects any other.
     fn fidelity_keys(&self) -> &'static [FidelityKey] {
         &[]
     }
@@ -87,8 +91,37 @@ pub trait ModelFactory: Send + Sync {
         check_capabilities(self.id(), self.capabilities(), scene)
     }
 
-    /// Build the model at `fidelity` (unset knobs take the model's defaults).
-    fn build(&self, scene: &Scene, fidelity: &Fidelity) -> Result<Box<dyn Model>, BuildError>;
+    /// Build the model from `settings` [`resolve`]d for `scene`: the scene
+    /// is supported and valid, the settings are the defaults overlaid with
+    /// the request, every extra declared and every choice a declared name.
+    /// The model checks only its own ranges and combinations.
+    fn build_resolved(&self, scene: &Scene, settings: &Settings) -> Result<Box<dyn Model>, BuildError>;
+
+    /// Build the model at `fidelity` (unset knobs take the model's
+    /// defaults): [`resolve`], then [`ModelFactory::build_resolved`]. The
+    /// entry point for library code; not meant to be overridden.
+    fn build(&self, scene: &Scene, fidelity: &Fidelity) -> Result<Box<dyn Model>, BuildError> {
+        let settings = resolve(self, scene, fidelity)?;
+        self.build_resolved(scene, &settings)
+    }
+}
+
+/// Resolve a run once: the requested extras are keys `factory` declares
+/// with values they take, `factory` supports `scene` ([`ModelFactory::check`]),
+/// the scene is valid, and the model's defaults for the scene are overlaid
+/// with the request. A bad knob (named, or `fidelity` when undeclared) or
+/// scene is [`BuildError::BadParameter`], a scene the model cannot run
+/// [`BuildError::Unsupported`].
+pub fn resolve<F: ModelFactory + ?Sized>(
+    factory: &F,
+    scene: &Scene,
+    requested: &Fidelity,
+) -> Result<Settings, BuildError> {
+    let keys = factory.fidelity_keys();
+    requested.build_check_extras(keys)?;
+    factory.check(scene)?;
+    scene.validate().map_err(|e| BuildError::bad("scene", e))?;
+    Settings::new(factory.default_fidelity(scene).merged(requested), keys)
 }
 
 /// `Ok` if `have` covers every capability `scene` requires; otherwise

@@ -5,7 +5,9 @@
 use crate::model::DerModel;
 use crate::rod::{DEFAULT_FRICTION_CREEP, DEFAULT_SUBSTEP_DEPTH, DerParams, DerRod, Integrator, TwistDynamics};
 use surgbench_core::beam::first_bending_frequency;
-use surgbench_core::{BuildError, Capability, Family, Fidelity, FidelityKey, Model, ModelFactory, Scene, Unsupported};
+use surgbench_core::{
+    BuildError, Capability, Choice, Family, Fidelity, FidelityKey, Model, ModelFactory, Scene, Settings, Unsupported,
+};
 
 const CAPABILITIES: &[Capability] = &[
     Capability::Rod,
@@ -23,30 +25,37 @@ const CAPABILITIES: &[Capability] = &[
 ];
 
 const KEYS: &[FidelityKey] = &[
-    FidelityKey {
-        name: "integrator",
-        doc: "time integrator: 0 = backward Euler (default), 1 = Newmark beta=1/4 gamma=1/2",
-    },
-    FidelityKey {
-        name: "dynamic_twist",
-        doc: "0 = quasi-static twist (default), 1 = rotational inertia rho J |e|",
-    },
-    FidelityKey {
-        name: "damping",
-        doc: "mass-proportional viscous damping (1/s), default 0",
-    },
-    FidelityKey {
-        name: "tolerance",
-        doc: "Newton tolerance on the update (positions / rod length, angles in rad), default 1e-9",
-    },
-    FidelityKey {
-        name: "friction_creep",
-        doc: "stick-slip width of the smoothed friction as a creep speed (m/s), default 1e-6",
-    },
-    FidelityKey {
-        name: "substep_depth",
-        doc: "largest number of step halvings when Newton fails (integer 0..=20), default 6 (dt/64)",
-    },
+    FidelityKey::choice(
+        "integrator",
+        "time integrator",
+        &[
+            Choice::new("backward-euler", "backward Euler (default)"),
+            Choice::new("newmark", "Newmark beta=1/4 gamma=1/2"),
+        ],
+    ),
+    FidelityKey::switch(
+        "dynamic_twist",
+        "0 = quasi-static twist (default), 1 = rotational inertia rho J |e|",
+    ),
+    FidelityKey::number("damping", "mass-proportional viscous damping (1/s), default 0"),
+    FidelityKey::number(
+        "tolerance",
+        "Newton tolerance on the update (positions / rod length, angles in rad), default 1e-9",
+    ),
+    FidelityKey::number(
+        "friction_creep",
+        "stick-slip width of the smoothed friction as a creep speed (m/s), default 1e-6",
+    ),
+    FidelityKey::number(
+        "substep_depth",
+        "largest number of step halvings when Newton fails (integer 0..=20), default 6 (dt/64)",
+    ),
+];
+
+/// The names of `integrator`, as the rod's integrators.
+const INTEGRATORS: &[(&str, Integrator)] = &[
+    ("backward-euler", Integrator::BackwardEuler),
+    ("newmark", Integrator::Newmark),
 ];
 
 /// Default number of segments over the free length.
@@ -116,48 +125,33 @@ impl ModelFactory for DerFactory {
         surgbench_core::model::check_capabilities(self.id(), self.capabilities(), scene)
     }
 
-    fn build(&self, scene: &Scene, fidelity: &Fidelity) -> Result<Box<dyn Model>, BuildError> {
-        self.check(scene)?;
-        scene.validate().map_err(|e| BuildError::bad("scene", e))?;
-        fidelity
-            .check_extras(KEYS)
-            .map_err(|e| BuildError::bad("fidelity", e.0))?;
-        let f = self.default_fidelity(scene).merged(fidelity);
+    fn build_resolved(&self, scene: &Scene, settings: &Settings) -> Result<Box<dyn Model>, BuildError> {
+        let f = settings.fidelity();
         let body = scene.rods().next().expect("checked: one rod");
         let mut rod = DerRod::from_body(body, f.segments.unwrap_or(DEFAULT_SEGMENTS))?;
         let dt = f.dt.unwrap_or(DEFAULT_DT);
         if !(dt > 0.0 && dt.is_finite()) {
             return Err(BuildError::bad("dt", format!("must be > 0 s, got {dt}")));
         }
-        let flag = |name: &str| -> Result<bool, BuildError> {
-            let v = f.extra(name, 0.0);
-            if v == 0.0 {
-                Ok(false)
-            } else if v == 1.0 {
-                Ok(true)
-            } else {
-                Err(BuildError::bad(name, format!("must be 0 or 1, got {v}")))
-            }
-        };
-        let damping = f.extra("damping", 0.0);
+        let damping = settings.number_or("damping", 0.0);
         if !(damping >= 0.0 && damping.is_finite()) {
             return Err(BuildError::bad("damping", format!("must be >= 0 1/s, got {damping}")));
         }
-        let tolerance = f.extra("tolerance", 1e-9);
+        let tolerance = settings.number_or("tolerance", 1e-9);
         if !(tolerance > 0.0 && tolerance < 1.0) {
             return Err(BuildError::bad(
                 "tolerance",
                 format!("must be in (0, 1), got {tolerance}"),
             ));
         }
-        let creep = f.extra("friction_creep", DEFAULT_FRICTION_CREEP);
+        let creep = settings.number_or("friction_creep", DEFAULT_FRICTION_CREEP);
         if !(creep > 0.0 && creep.is_finite()) {
             return Err(BuildError::bad(
                 "friction_creep",
                 format!("must be > 0 m/s, got {creep}"),
             ));
         }
-        let depth = f.extra("substep_depth", DEFAULT_SUBSTEP_DEPTH as f64);
+        let depth = settings.number_or("substep_depth", DEFAULT_SUBSTEP_DEPTH as f64);
         if !(0.0..=20.0).contains(&depth) || depth.fract() != 0.0 {
             return Err(BuildError::bad(
                 "substep_depth",
@@ -165,12 +159,8 @@ impl ModelFactory for DerFactory {
             ));
         }
         rod.params = DerParams {
-            integrator: if flag("integrator")? {
-                Integrator::Newmark
-            } else {
-                Integrator::BackwardEuler
-            },
-            twist: if flag("dynamic_twist")? {
+            integrator: settings.pick("integrator", INTEGRATORS, Integrator::BackwardEuler)?,
+            twist: if settings.switch("dynamic_twist", false) {
                 TwistDynamics::Dynamic
             } else {
                 TwistDynamics::QuasiStatic

@@ -44,6 +44,8 @@ fn bad_fidelity_is_a_value_not_a_panic() {
     for pairs in [
         &["typo=1"][..],
         &["integrator=2"],
+        &["integrator=newmark-beta"],
+        &["dynamic_twist=2"],
         &["damping=-1"],
         &["tolerance=2"],
         &["segments=1"],

@@ -6,105 +6,131 @@ use crate::assembly::{LinearSolver, Ordering};
 use crate::dynamics::{DynParams, FemModel, Integrator, REUSE_TOL};
 use crate::material::Law;
 use surgbench_core::sphere_contact::DEFAULT_KAPPA;
-use surgbench_core::{BuildError, Capability, Family, Fidelity, FidelityKey, Model, ModelFactory, Scene, TissueBody};
+use surgbench_core::{
+    BuildError, Capability, Choice, Family, Fidelity, FidelityKey, Model, ModelFactory, Scene, Settings, TissueBody,
+};
 
 /// The `fem` model: corotational (default), linear or neo-Hookean tetrahedra.
 pub struct FemFactory;
 
 const KEYS: &[FidelityKey] = &[
-    FidelityKey {
-        name: "material_law",
-        doc: "0 corotational (Irving 2004, default), 1 linear small strain, 2 neo-Hookean (Bonet-Wood)",
-    },
-    FidelityKey {
-        name: "integrator",
-        doc: "0 Newmark beta=1/4 (default for dynamic scenes), 1 backward Euler, 2 quasi-static (default when the scene settles)",
-    },
-    FidelityKey {
-        name: "solver",
-        doc: "0 sparse Cholesky (faer, default), 1 block-Jacobi PCG",
-    },
-    FidelityKey {
-        name: "ordering",
-        doc: "Cholesky fill ordering: 0 AMD, 1 reverse Cuthill-McKee, 2 geometric nested dissection, 3 whichever of AMD and nested dissection fills less (default)",
-    },
-    FidelityKey {
-        name: "cg_tol",
-        doc: "PCG relative residual tolerance (default 1e-8)",
-    },
-    FidelityKey {
-        name: "factor_reuse",
-        doc: "Cholesky: 1 (default) = while Jacobian blocks changed, CG preconditioned by the last factor (refactor when it ages), 0 = refactor whenever a block changed",
-    },
-    FidelityKey {
-        name: "reuse_tol",
-        doc: "Cholesky with factor_reuse: relative residual of the stale-factor PCG (default 1e-6)",
-    },
-    FidelityKey {
-        name: "reuse_f32",
-        doc: "Cholesky with factor_reuse: 1 (default) = the stale-factor PCG applies an f32 copy of the factor, two-way parallel (CG in f64, same tolerance), 0 = the f64 factor (faer's sequential solve)",
-    },
-    FidelityKey {
-        name: "lazy_threshold",
-        doc: "lazy Jacobian: rebuild an element's block when its rotation moved more than this (rad); default 0 = always",
-    },
-    FidelityKey {
-        name: "rayleigh_mass",
-        doc: "Rayleigh damping alpha (1/s), default 0",
-    },
-    FidelityKey {
-        name: "rayleigh_stiffness",
-        doc: "Rayleigh damping beta (s), default 0",
-    },
-    FidelityKey {
-        name: "threads",
-        doc: "assembly threads (default 2); results are identical for any count",
-    },
-    FidelityKey {
-        name: "contact_stiffness",
-        doc: "sphere contact penalty factor kappa: node stiffness kappa E/(1-nu^2) sqrt(node boundary area) (default 100; penetration ~ contact strain / kappa of the mesh size)",
-    },
+    FidelityKey::choice(
+        "material_law",
+        "constitutive law of the tets",
+        &[
+            Choice::new("corotational", "corotational linear (Irving 2004, default)"),
+            Choice::new("linear", "linear small strain"),
+            Choice::new("neo-hookean", "compressible neo-Hookean (Bonet-Wood)"),
+        ],
+    ),
+    FidelityKey::choice(
+        "integrator",
+        "time integrator",
+        &[
+            Choice::new("newmark", "Newmark beta=1/4 (default for dynamic scenes)"),
+            Choice::new("backward-euler", "backward Euler"),
+            Choice::new(
+                "quasi-static",
+                "static equilibrium every step (default when the scene settles)",
+            ),
+        ],
+    ),
+    FidelityKey::choice(
+        "solver",
+        "linear solver of each Newton step",
+        &[
+            Choice::new("direct", "sparse Cholesky (faer, default)"),
+            Choice::new("cg", "block-Jacobi PCG"),
+        ],
+    ),
+    FidelityKey::choice(
+        "ordering",
+        "Cholesky fill ordering",
+        &[
+            Choice::new("amd", "approximate minimum degree"),
+            Choice::new("rcm", "reverse Cuthill-McKee"),
+            Choice::new("nested-dissection", "geometric nested dissection"),
+            Choice::new("auto", "whichever of AMD and nested dissection fills less (default)"),
+        ],
+    ),
+    FidelityKey::number("cg_tol", "PCG relative residual tolerance (default 1e-8)"),
+    FidelityKey::switch(
+        "factor_reuse",
+        "Cholesky: 1 (default) = while Jacobian blocks changed, CG preconditioned by the last factor (refactor when it ages), 0 = refactor whenever a block changed",
+    ),
+    FidelityKey::number(
+        "reuse_tol",
+        "Cholesky with factor_reuse: relative residual of the stale-factor PCG (default 1e-6)",
+    ),
+    FidelityKey::switch(
+        "reuse_f32",
+        "Cholesky with factor_reuse: 1 (default) = the stale-factor PCG applies an f32 copy of the factor, two-way parallel (CG in f64, same tolerance), 0 = the f64 factor (faer's sequential solve)",
+    ),
+    FidelityKey::number(
+        "lazy_threshold",
+        "lazy Jacobian: rebuild an element's block when its rotation moved more than this (rad); default 0 = always",
+    ),
+    FidelityKey::number("rayleigh_mass", "Rayleigh damping alpha (1/s), default 0"),
+    FidelityKey::number("rayleigh_stiffness", "Rayleigh damping beta (s), default 0"),
+    FidelityKey::number(
+        "threads",
+        "assembly threads (default 2); results are identical for any count",
+    ),
+    FidelityKey::number(
+        "contact_stiffness",
+        "sphere contact penalty factor kappa: node stiffness kappa E/(1-nu^2) sqrt(node boundary area) (default 100; penetration ~ contact strain / kappa of the mesh size)",
+    ),
+];
+
+/// The names of `material_law`, `integrator` and `ordering`, as the model's values.
+const LAWS: &[(&str, Law)] = &[
+    ("corotational", Law::Corotational),
+    ("linear", Law::Linear),
+    ("neo-hookean", Law::NeoHookean),
+];
+const INTEGRATORS: &[(&str, Integrator)] = &[
+    ("newmark", Integrator::Newmark),
+    ("backward-euler", Integrator::BackwardEuler),
+    ("quasi-static", Integrator::QuasiStatic),
+];
+const ORDERINGS: &[(&str, Ordering)] = &[
+    ("amd", Ordering::Amd),
+    ("rcm", Ordering::Rcm),
+    ("nested-dissection", Ordering::NestedDissection),
+    ("auto", Ordering::Auto),
 ];
 
 impl FemFactory {
-    fn params(&self, scene: &Scene, f: &Fidelity) -> Result<(DynParams, f64), BuildError> {
-        let full = self.default_fidelity(scene).merged(f);
-        full.check_extras(KEYS).map_err(|e| BuildError::bad("fidelity", e.0))?;
+    fn params(&self, s: &Settings) -> Result<(DynParams, f64), BuildError> {
+        let full = s.fidelity();
         // `mesh_level` is the scenario's knob: it builds the scene's mesh at
         // that level (`Scenario::instantiate_at`); fem runs on that mesh.
-        let code = |name: &str, max: f64| int_code(&full, name, max);
-        let law = Law::from_code(code("material_law", 2.0)?).expect("range checked");
-        let integrator = match code("integrator", 2.0)? as usize {
-            0 => Integrator::Newmark,
-            1 => Integrator::BackwardEuler,
-            _ => Integrator::QuasiStatic,
-        };
-        let solver = linear_solver(&full)?;
+        let law = s.pick("material_law", LAWS, Law::Corotational)?;
+        let integrator = s.pick("integrator", INTEGRATORS, Integrator::Newmark)?;
+        let solver = linear_solver(s)?;
         let nonneg = |name: &str| -> Result<f64, BuildError> {
-            let v = full.extra(name, 0.0);
+            let v = s.number_or(name, 0.0);
             if v >= 0.0 {
                 Ok(v)
             } else {
                 Err(BuildError::bad(name, format!("must be >= 0, got {v}")))
             }
         };
-        let factor_reuse = switch(&full, "factor_reuse")?;
-        let reuse_f32 = switch(&full, "reuse_f32")?;
-        let reuse_tol = full.extra("reuse_tol", REUSE_TOL);
+        let reuse_tol = s.number_or("reuse_tol", REUSE_TOL);
         if !(reuse_tol > 0.0 && reuse_tol < 1.0) {
             return Err(BuildError::bad(
                 "reuse_tol",
                 format!("must be in (0, 1), got {reuse_tol}"),
             ));
         }
-        let threads = full.extra("threads", 2.0);
+        let threads = s.number_or("threads", 2.0);
         if !(1.0..=64.0).contains(&threads) || threads.fract() != 0.0 {
             return Err(BuildError::bad(
                 "threads",
                 format!("must be an integer in 1..=64, got {threads}"),
             ));
         }
-        let contact_stiffness = full.extra("contact_stiffness", DEFAULT_KAPPA);
+        let contact_stiffness = s.number_or("contact_stiffness", DEFAULT_KAPPA);
         if !(contact_stiffness > 0.0 && contact_stiffness.is_finite()) {
             return Err(BuildError::bad(
                 "contact_stiffness",
@@ -117,9 +143,9 @@ impl FemFactory {
             integrator,
             solver,
             lazy_threshold: nonneg("lazy_threshold")?,
-            factor_reuse,
+            factor_reuse: s.switch("factor_reuse", true),
             reuse_tol,
-            reuse_f32,
+            reuse_f32: s.switch("reuse_f32", true),
             rayleigh_mass: nonneg("rayleigh_mass")?,
             rayleigh_stiffness: nonneg("rayleigh_stiffness")?,
             iterations: full.iterations.unwrap_or(1),
@@ -161,15 +187,13 @@ impl ModelFactory for FemFactory {
         };
         if scene.settle.is_some() {
             f.iterations = Some(30);
-            f.extras.insert("integrator".into(), 2.0);
+            f.extras.insert("integrator".into(), "quasi-static".into());
         } else {
             f.iterations = Some(1);
         }
         f
     }
-    fn build(&self, scene: &Scene, fidelity: &Fidelity) -> Result<Box<dyn Model>, BuildError> {
-        self.check(scene)?;
-        scene.validate().map_err(|e| BuildError::bad("scene", e))?;
+    fn build_resolved(&self, scene: &Scene, settings: &Settings) -> Result<Box<dyn Model>, BuildError> {
         let tissues: Vec<&TissueBody> = scene.tissues().collect();
         if tissues.len() != 1 {
             return Err(surgbench_core::Unsupported::new(format!(
@@ -178,49 +202,22 @@ impl ModelFactory for FemFactory {
             ))
             .into());
         }
-        let (p, dt) = self.params(scene, fidelity)?;
+        let (p, dt) = self.params(settings)?;
         let m =
             FemModel::new(tissues[0], scene.gravity, dt, p).map_err(|e| BuildError::bad("tissue", e.to_string()))?;
         Ok(Box::new(m))
     }
 }
 
-/// The fidelity extra `name` (default 0) as an integer code in `0..=max`.
-fn int_code(full: &Fidelity, name: &str, max: f64) -> Result<f64, BuildError> {
-    let v = full.extra(name, 0.0);
-    if v < 0.0 || v > max || v.fract() != 0.0 {
-        Err(BuildError::bad(
-            name,
-            format!("must be an integer in 0..={max}, got {v}"),
-        ))
-    } else {
-        Ok(v)
-    }
-}
-
-/// The fidelity extra `name` (default 1 = on) as an on/off switch.
-fn switch(full: &Fidelity, name: &str) -> Result<bool, BuildError> {
-    match full.extra(name, 1.0) {
-        0.0 => Ok(false),
-        1.0 => Ok(true),
-        v => Err(BuildError::bad(name, format!("must be 0 or 1, got {v}"))),
-    }
-}
-
 /// The linear solver of the extras `solver`, `ordering` and `cg_tol`.
-fn linear_solver(full: &Fidelity) -> Result<LinearSolver, BuildError> {
-    let ordering = match full.extra("ordering", 3.0) {
-        0.0 => Ordering::Amd,
-        1.0 => Ordering::Rcm,
-        2.0 => Ordering::NestedDissection,
-        3.0 => Ordering::Auto,
-        v => return Err(BuildError::bad("ordering", format!("must be 0, 1, 2 or 3, got {v}"))),
-    };
-    let cg_tol = full.extra("cg_tol", 1e-8);
+fn linear_solver(s: &Settings) -> Result<LinearSolver, BuildError> {
+    let ordering = s.pick("ordering", ORDERINGS, Ordering::Auto)?;
+    let cg_tol = s.number_or("cg_tol", 1e-8);
     if !(cg_tol > 0.0 && cg_tol < 1.0) {
         return Err(BuildError::bad("cg_tol", format!("must be in (0, 1), got {cg_tol}")));
     }
-    Ok(if int_code(full, "solver", 1.0)? == 1.0 {
+    let cg = s.pick("solver", &[("direct", false), ("cg", true)], false)?;
+    Ok(if cg {
         LinearSolver::Cg {
             tol: cg_tol,
             max_iter: 2000,

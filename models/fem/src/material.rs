@@ -49,17 +49,6 @@ impl Law {
             Law::NeoHookean => "neo-hookean",
         }
     }
-
-    /// From the fidelity code `material_law` (0 corotational, 1 linear,
-    /// 2 neo-Hookean).
-    pub fn from_code(c: f64) -> Option<Law> {
-        match c {
-            0.0 => Some(Law::Corotational),
-            1.0 => Some(Law::Linear),
-            2.0 => Some(Law::NeoHookean),
-            _ => None,
-        }
-    }
 }
 
 /// Rotation-variant SVD polar decomposition (Irving et al. 2004, Sec. 4):

@@ -57,6 +57,12 @@ fn factory_contract() {
         .err()
         .unwrap();
     assert!(e.to_string().contains("material_law"), "{e}");
+    // a choice is a name: an unknown one is refused listing the names
+    let e = f
+        .build(&scene(false), &Fidelity::parse_pairs(&["solver=lu"]).unwrap())
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("direct, cg"), "{e}");
     // `mesh_level` belongs to the scenario (it builds the mesh): fem accepts it.
     assert!(
         f.build(&scene(false), &Fidelity::parse_pairs(&["mesh_level=2"]).unwrap())
@@ -317,7 +323,7 @@ fn pressure_faces_and_rollers_reproduce_lame_through_the_factory() {
     let f = FemFactory;
     f.check(&sc).unwrap();
     let mut model = f
-        .build(&sc, &Fidelity::parse_pairs(&["material_law=1"]).unwrap())
+        .build(&sc, &Fidelity::parse_pairs(&["material_law=linear"]).unwrap())
         .unwrap();
     model
         .step(

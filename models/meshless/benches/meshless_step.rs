@@ -38,7 +38,7 @@ fn bench(c: &mut Criterion) {
         let s = scene(cells);
         let n = (cells + 1).pow(3);
         for pbd in [0, 1] {
-            let f = Fidelity::parse_pairs(&["integrator=0", "dt=1e-5", &format!("pbd={pbd}")]).unwrap();
+            let f = Fidelity::parse_pairs(&["integrator=symplectic-euler", "dt=1e-5", &format!("pbd={pbd}")]).unwrap();
             let mut m = MeshlessTissue::new(&s, &f).unwrap();
             let cmd = DeviceCommand {
                 load: 0.1,

@@ -223,7 +223,7 @@ fn the_sphere_moves_with_the_command_and_the_body_pushes_it_back() {
 fn what_cannot_take_the_contact_is_refused_with_a_reason() {
     let scene = platen_scene(2, true);
     assert!(MeshlessFactory.check(&scene).is_ok());
-    for bad in [["integrator=0"], ["pbd=1"]] {
+    for bad in [["integrator=symplectic-euler"], ["pbd=1"]] {
         match MeshlessFactory.build(&scene, &fid(&bad)) {
             Err(BuildError::Unsupported(u)) => {
                 assert!(u.reason.contains("sphere contact"), "{bad:?}: {}", u.reason)
@@ -242,13 +242,17 @@ fn what_cannot_take_the_contact_is_refused_with_a_reason() {
         );
     }
     // Backward Euler takes the contact.
-    assert!(MeshlessFactory.build(&scene, &fid(&["integrator=1"])).is_ok());
+    assert!(
+        MeshlessFactory
+            .build(&scene, &fid(&["integrator=backward-euler"]))
+            .is_ok()
+    );
 }
 
 #[test]
 fn reruns_with_contact_are_bit_identical() {
     let scene = platen_scene(3, true);
-    for f in [Fidelity::default(), fid(&["integrator=1", "dt=1e-3"])] {
+    for f in [Fidelity::default(), fid(&["integrator=backward-euler", "dt=1e-3"])] {
         let run = || {
             let mut m = MeshlessTissue::new(&scene, &f).unwrap();
             let dt = m.dt();

@@ -123,8 +123,8 @@ fn pbd_projection_keeps_rest_and_reduces_violation() {
 fn reruns_are_bit_identical() {
     let scene = compression_scene(0.01, 3, 0.05, 0.3, 0.02);
     for f in [
-        fid(&["integrator=0", "dt=1e-5", "pbd=1"]),
-        fid(&["integrator=1", "dt=1e-3"]),
+        fid(&["integrator=symplectic-euler", "dt=1e-5", "pbd=1"]),
+        fid(&["integrator=backward-euler", "dt=1e-3"]),
         Fidelity::default(),
     ] {
         let steps = if f.dt == Some(1e-5) { 300 } else { 5 };
@@ -139,11 +139,15 @@ fn reruns_are_bit_identical() {
 fn explicit_integrator_respects_its_stability_limit() {
     // 1 cm cube, 3 cells, bottom fixed, top pulled 5% in 2 ms; undamped.
     let scene = compression_scene(0.01, 3, -0.05, 0.3, 2e-3);
-    let probe = MeshlessTissue::new(&scene, &fid(&["integrator=0"])).unwrap();
+    let probe = MeshlessTissue::new(&scene, &fid(&["integrator=symplectic-euler"])).unwrap();
     let dc = probe.critical_dt(200);
     eprintln!("explicit critical dt (power iteration, 200 its) = {dc:.3e} s");
     let run_for = |dt: f64, t_end: f64| -> Result<f64, String> {
-        let mut m = MeshlessTissue::new(&scene, &fid(&["integrator=0", "damping=0", &format!("dt={dt}")])).unwrap();
+        let mut m = MeshlessTissue::new(
+            &scene,
+            &fid(&["integrator=symplectic-euler", "damping=0", &format!("dt={dt}")]),
+        )
+        .unwrap();
         let steps = (t_end / dt).ceil() as usize;
         let mut emax: f64 = 0.0;
         for k in 1..=steps {
@@ -202,6 +206,7 @@ fn factory_declines_what_it_cannot_model() {
     for bad in [
         ["typo=1"],
         ["integrator=3"],
+        ["integrator=explicit"],
         ["pbd=0.5"],
         ["pbd_tet=2"],
         ["support_factor=0"],

@@ -2,7 +2,8 @@
 
 use crate::model::NeedleModel;
 use surgbench_core::{
-    BuildError, Capability, Family, Fidelity, Model, ModelFactory, Scene, Unsupported, model::check_capabilities,
+    BuildError, Capability, Family, Fidelity, Model, ModelFactory, Scene, Settings, Unsupported,
+    model::check_capabilities,
 };
 use surgbench_der::DerRod;
 use surgbench_fem::{DynParams, FemModel, Integrator};
@@ -59,13 +60,8 @@ impl ModelFactory for NeedleFactory {
         }
         Ok(())
     }
-    fn build(&self, scene: &Scene, fidelity: &Fidelity) -> Result<Box<dyn Model>, BuildError> {
-        self.check(scene)?;
-        scene.validate().map_err(|e| BuildError::bad("scene", e))?;
-        fidelity
-            .check_extras(&[])
-            .map_err(|e| BuildError::bad("fidelity", e.0))?;
-        let f = self.default_fidelity(scene).merged(fidelity);
+    fn build_resolved(&self, scene: &Scene, settings: &Settings) -> Result<Box<dyn Model>, BuildError> {
+        let f = settings.fidelity();
         if f.iterations != Some(1) {
             return Err(BuildError::bad(
                 "iterations",

@@ -3,14 +3,15 @@
 //! at 10 iterations (<= 10 ms/step) and the same with hash activation of one
 //! box (<= 1 ms/step). The tissue runs at 1 and 2 solver threads (the
 //! `threads` fidelity extra; results are bit-identical across counts). The
-//! rod runs with both constraint solvers (`solver` 0 = Gauss-Seidel, 1 =
-//! direct banded solve of Deul et al. 2018) at the same iteration and
+//! rod runs with both constraint solvers (`solver` `gauss-seidel`, or
+//! `direct`: the banded solve of Deul et al. 2018) at the same iteration and
 //! substep counts, so the ratio is the cost per iteration.
 
 use std::hint::black_box;
 use std::sync::Arc;
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use surgbench_core::Setting;
 use surgbench_core::mesh;
 use surgbench_core::sdf::StraightTube;
 use surgbench_core::{
@@ -18,7 +19,7 @@ use surgbench_core::{
 };
 use surgbench_pbd::{PbdRodFactory, PbdTissueFactory};
 
-fn rod_model(iterations: usize, substeps: usize, solver: usize) -> Box<dyn Model> {
+fn rod_model(iterations: usize, substeps: usize, solver: &str) -> Box<dyn Model> {
     let mut scene = Scene::empty("rod-in-tube");
     scene.bodies.push(RodBody::uniform(0.5, 2e-4, 5e10, 0.3, 6450.0).into());
     scene.gravity = Vec3::new(0.0, 0.0, -9.81);
@@ -36,8 +37,8 @@ fn rod_model(iterations: usize, substeps: usize, solver: usize) -> Box<dyn Model
         iterations: Some(iterations),
         ..Default::default()
     };
-    f.extras.insert("substeps".into(), substeps as f64);
-    f.extras.insert("solver".into(), solver as f64);
+    f.extras.insert("substeps".into(), Setting::from(substeps as f64));
+    f.extras.insert("solver".into(), Setting::from(solver));
     let mut m = PbdRodFactory.build(&scene, &f).unwrap();
     // Let the wire sag onto the wall first.
     for k in 0..200 {
@@ -95,9 +96,9 @@ fn tissue_model(hash_box: f64, threads: usize) -> Box<dyn Model> {
         ..Default::default()
     };
     if hash_box > 0.0 {
-        f.extras.insert("hash_box".into(), hash_box);
+        f.extras.insert("hash_box".into(), Setting::from(hash_box));
     }
-    f.extras.insert("threads".into(), threads as f64);
+    f.extras.insert("threads".into(), Setting::from(threads as f64));
     let mut m = PbdTissueFactory.build(&scene, &f).unwrap();
     for k in 0..20 {
         m.step(
@@ -115,12 +116,18 @@ fn tissue_model(hash_box: f64, threads: usize) -> Box<dyn Model> {
 fn bench(c: &mut Criterion) {
     let mut g = c.benchmark_group("pbd");
     g.sample_size(20);
-    for (it, sub, solver) in [(10, 1, 0), (4, 5, 0), (10, 1, 1), (4, 5, 1), (2, 1, 1)] {
+    for (it, sub, solver) in [
+        (10, 1, "gauss-seidel"),
+        (4, 5, "gauss-seidel"),
+        (10, 1, "direct"),
+        (4, 5, "direct"),
+        (2, 1, "direct"),
+    ] {
         let mut m = rod_model(it, sub, solver);
         let mut k = 200;
         // Gauss-Seidel keeps its historical names (the CI gate's baseline).
         let name = match solver {
-            0 => format!("rod100_tube_it{it}_sub{sub}"),
+            "gauss-seidel" => format!("rod100_tube_it{it}_sub{sub}"),
             _ => format!("rod100_tube_it{it}_sub{sub}_direct"),
         };
         g.bench_function(name, |b| {

@@ -1,6 +1,7 @@
 //! Ghost collision surface of a hybrid vessel: inner-wall triangles carried by
 //! the tetrahedral wall, colliding with catheter particles.
 
+use surgbench_core::Setting;
 use surgbench_core::mesh::{tet_volume, tube};
 use surgbench_core::{Body, DeviceCommand, Fidelity, Model, Scene, SolidMaterial, TetMesh, TissueBody, Vec3};
 use surgbench_pbd::ghost::closest_on_triangle;
@@ -47,7 +48,7 @@ fn vessel_model() -> PbdTissue {
         iterations: Some(20),
         ..Default::default()
     };
-    f.extras.insert("damping".into(), 50.0);
+    f.extras.insert("damping".into(), Setting::from(50.0));
     PbdTissue::new(&scene, &f).expect("build")
 }
 

@@ -31,7 +31,7 @@ fn friction_is_measured_against_the_moving_wall() {
         segments: Some(40),
         ..Default::default()
     };
-    f.set("solver", 1.0).unwrap();
+    f.set_setting("solver", "direct".into()).unwrap();
     f.set("damping", 50.0).unwrap();
     let mut m = PbdRodFactory.build(&scene, &f).unwrap();
     let dt = 1e-3;

@@ -3,6 +3,7 @@
 use std::f64::consts::PI;
 use std::sync::Arc;
 
+use surgbench_core::Setting;
 use surgbench_core::sdf::StraightTube;
 use surgbench_core::{
     BuildError, DeviceCommand, Fidelity, Iso3, LoadRamp, Model, ModelFactory, Observation, RodBody, Scene, Vec3,
@@ -23,8 +24,8 @@ fn fid(seg: usize, iters: usize, sub: usize, dt: f64, damping: f64) -> Fidelity 
         iterations: Some(iters),
         ..Default::default()
     };
-    f.extras.insert("substeps".into(), sub as f64);
-    f.extras.insert("damping".into(), damping);
+    f.extras.insert("substeps".into(), Setting::from(sub as f64));
+    f.extras.insert("damping".into(), Setting::from(damping));
     f
 }
 
@@ -387,13 +388,13 @@ fn sliding_rod_feels_coulomb_friction() {
 fn bad_input_is_rejected_not_panicked() {
     let scene = cantilever_scene(0.1);
     let mut f = fid(10, 10, 1, 1e-3, 0.0);
-    f.extras.insert("substepz".into(), 2.0);
+    f.extras.insert("substepz".into(), Setting::from(2.0));
     assert!(matches!(
         PbdRodFactory.build(&scene, &f),
         Err(BuildError::BadParameter { .. })
     ));
     let mut f = fid(10, 10, 1, 1e-3, 0.0);
-    f.extras.insert("substeps".into(), 0.5);
+    f.extras.insert("substeps".into(), Setting::from(0.5));
     assert!(matches!(
         PbdRodFactory.build(&scene, &f),
         Err(BuildError::BadParameter { .. })

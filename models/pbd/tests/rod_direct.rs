@@ -1,4 +1,4 @@
-//! The direct solver of `pbd-rod` (`solver = 1`; Deul, Kugelstadt, Weiler &
+//! The direct solver of `pbd-rod` (`solver = "direct"`; Deul, Kugelstadt, Weiler &
 //! Bender 2018, "Direct Position-Based Solver for Stiff Rods"): agreement
 //! with the Gauss-Seidel path where both converge, the large-deflection
 //! cantilever under a dead tip load (which Gauss-Seidel cannot carry back
@@ -9,6 +9,7 @@
 use std::f64::consts::PI;
 use std::sync::Arc;
 
+use surgbench_core::Setting;
 use surgbench_core::sdf::StraightTube;
 use surgbench_core::{BuildError, DeviceCommand, Fidelity, ModelFactory, Observation, RodBody, Scene, Vec3};
 use surgbench_pbd::PbdRodFactory;
@@ -38,16 +39,16 @@ fn ea_ga() -> (f64, f64) {
     (E * a, E / (2.0 * (1.0 + NU)) * a)
 }
 
-fn fid(seg: usize, iters: usize, sub: usize, solver: u8) -> Fidelity {
+fn fid(seg: usize, iters: usize, sub: usize, solver: &str) -> Fidelity {
     let mut f = Fidelity {
         segments: Some(seg),
         dt: Some(1e-3),
         iterations: Some(iters),
         ..Default::default()
     };
-    f.extras.insert("substeps".into(), sub as f64);
-    f.extras.insert("damping".into(), DAMPING);
-    f.extras.insert("solver".into(), solver as f64);
+    f.extras.insert("substeps".into(), Setting::from(sub as f64));
+    f.extras.insert("damping".into(), Setting::from(DAMPING));
+    f.extras.insert("solver".into(), Setting::from(solver));
     f
 }
 
@@ -147,8 +148,8 @@ fn direct_and_gauss_seidel_reach_the_same_static_answer() {
     // balancing the loads, is the same for both solvers and any h, so the
     // shapes must agree to what the residuals leave.
     let scene = gravity_scene();
-    let (gs, res_gs) = run(&scene, &fid(10, 20, 100, 0), 300);
-    let (dr, res_dr) = run(&scene, &fid(10, 4, 1, 1), 300);
+    let (gs, res_gs) = run(&scene, &fid(10, 20, 100, "gauss-seidel"), 300);
+    let (dr, res_dr) = run(&scene, &fid(10, 4, 1, "direct"), 300);
     println!(
         "residual GS {res_gs:e}, direct {res_dr:e}; tip GS {:?} direct {:?}",
         gs.rods[0].tip(),
@@ -200,7 +201,7 @@ fn direct_solver_settles_the_dead_tip_load_and_converges_to_the_elastica_at_seco
     let mut errs = Vec::new();
     let mut errs_elastica = Vec::new();
     for &n in &segs {
-        let (o, res) = run(&scene, &fid(n, 4, 1, 1), 300);
+        let (o, res) = run(&scene, &fid(n, 4, 1, "direct"), 300);
         let tip = o.rods[0].tip();
         let err = (tip.x - xr).hypot(tip.z - zr) / defl;
         let err_e = (tip.x - xe).hypot(tip.z - ze) / defl;
@@ -262,7 +263,7 @@ fn direct_reruns_are_bit_identical_with_contact_and_friction() {
     scene.environment.contact.friction_static = 0.1;
     scene.environment.contact.friction_dynamic = 0.05;
     scene.environment.contact.margin = 2e-4;
-    let f = fid(30, 3, 2, 1);
+    let f = fid(30, 3, 2, "direct");
     let go = || {
         let mut m = PbdRodFactory.build(&scene, &f).expect("build");
         for k in 0..150 {
@@ -295,9 +296,11 @@ fn direct_reruns_are_bit_identical_with_contact_and_friction() {
 #[test]
 fn bad_solver_values_are_rejected_naming_the_key() {
     let scene = gravity_scene();
-    for v in [2.0, 0.5, -1.0, f64::NAN] {
-        let mut f = fid(10, 4, 1, 0);
-        f.extras.insert("solver".into(), v);
+    // numeric codes are no longer choices; a name must be declared
+    let values = [1.0.into(), 2.0.into(), f64::NAN.into(), "lu".into(), "Direct".into()];
+    for v in values {
+        let mut f = fid(10, 4, 1, "gauss-seidel");
+        f.extras.insert("solver".into(), Setting::clone(&v));
         match PbdRodFactory.build(&scene, &f) {
             Err(BuildError::BadParameter { name, reason }) => {
                 assert_eq!(name, "solver", "solver = {v}: {reason}");

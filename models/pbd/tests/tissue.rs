@@ -1,5 +1,6 @@
 //! Physics tests of the tetrahedral XPBD tissue (`pbd-tissue`).
 
+use surgbench_core::Setting;
 use surgbench_core::mesh::{tet_volume_gradients, tet_volume_of as tet_volume};
 use surgbench_core::{
     Body, BuildError, DeviceCommand, Fidelity, Iso3, Model, ModelFactory, Observation, Scene, SolidMaterial,
@@ -16,8 +17,8 @@ fn fid(iters: usize, sub: usize, dt: f64, damping: f64) -> Fidelity {
         iterations: Some(iters),
         ..Default::default()
     };
-    f.extras.insert("substeps".into(), sub as f64);
-    f.extras.insert("damping".into(), damping);
+    f.extras.insert("substeps".into(), Setting::from(sub as f64));
+    f.extras.insert("damping".into(), Setting::from(damping));
     f
 }
 
@@ -275,9 +276,9 @@ fn results_are_bit_identical_for_any_thread_count() {
         let mut runs = Vec::new();
         for threads in [1.0, 2.0, 3.0] {
             let mut f = fid(5, 2, 1e-3, 10.0);
-            f.extras.insert("threads".into(), threads);
+            f.extras.insert("threads".into(), Setting::from(threads));
             if hash_box > 0.0 {
-                f.extras.insert("hash_box".into(), hash_box);
+                f.extras.insert("hash_box".into(), Setting::from(hash_box));
             }
             let (o, m) = run(&scene, &f, 40, 20);
             assert_eq!(m.settings().threads, threads as usize);
@@ -320,7 +321,7 @@ fn local_vs_full(hash_box: f64, core: (f64, f64)) -> (f64, f64, f64, f64, f64) {
     // Converged solves (residual printed), so the difference is the localisation.
     let full_f = fid(20, 2, 1e-3, 100.0);
     let mut local_f = full_f.clone();
-    local_f.extras.insert("hash_box".into(), hash_box);
+    local_f.extras.insert("hash_box".into(), Setting::from(hash_box));
     let (full, mf) = run(&scene, &full_f, steps, 40);
     let (local, ml) = run(&scene, &local_f, steps, 40);
     let rest = &full.tissues[0].rest;
@@ -385,13 +386,13 @@ fn bad_input_is_rejected_not_panicked() {
     let h = 5e-3;
     let scene = block_scene([1, 1, 1], h, 0.3, |p| p.z == 0.0, |_| false, Vec3::zeros());
     let mut f = fid(10, 1, 1e-3, 0.0);
-    f.extras.insert("hashbox".into(), 0.1);
+    f.extras.insert("hashbox".into(), Setting::from(0.1));
     assert!(matches!(
         PbdTissueFactory.build(&scene, &f),
         Err(BuildError::BadParameter { .. })
     ));
     let mut f = fid(10, 1, 1e-3, 0.0);
-    f.extras.insert("hash_box".into(), 0.01);
+    f.extras.insert("hash_box".into(), Setting::from(0.01));
     // Local activation needs a tool (driven nodes): none here.
     assert!(matches!(
         PbdTissueFactory.build(&scene, &f),
@@ -399,7 +400,7 @@ fn bad_input_is_rejected_not_panicked() {
     ));
     for threads in [0.0, 1.5, -2.0] {
         let mut f = fid(10, 1, 1e-3, 0.0);
-        f.extras.insert("threads".into(), threads);
+        f.extras.insert("threads".into(), Setting::from(threads));
         assert!(
             matches!(PbdTissueFactory.build(&scene, &f), Err(BuildError::BadParameter { .. })),
             "threads = {threads} accepted"

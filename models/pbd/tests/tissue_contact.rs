@@ -3,6 +3,7 @@
 //! converged hard contact against the same node driven (the bilateral
 //! limit), rollers, refusals, reruns.
 
+use surgbench_core::Setting;
 use surgbench_core::scene::SphereIndenter;
 use surgbench_core::{
     Body, BuildError, DeviceCommand, Fidelity, Model, ModelFactory, Scene, SolidMaterial, TissueBody, Vec3,
@@ -17,8 +18,8 @@ fn fid(iters: usize, dt: f64, damping: f64, threads: usize) -> Fidelity {
         iterations: Some(iters),
         ..Default::default()
     };
-    f.extras.insert("damping".into(), damping);
-    f.extras.insert("threads".into(), threads as f64);
+    f.extras.insert("damping".into(), Setting::from(damping));
+    f.extras.insert("threads".into(), Setting::from(threads as f64));
     f
 }
 
@@ -255,7 +256,7 @@ fn what_cannot_take_the_contact_is_refused_with_a_reason() {
     });
     assert!(PbdTissueFactory.check(&scene).is_ok());
     let mut f = fid(10, 1e-3, 0.0, 1);
-    f.extras.insert("hash_box".into(), 0.01);
+    f.extras.insert("hash_box".into(), Setting::from(0.01));
     match PbdTissueFactory.build(&scene, &f) {
         Err(BuildError::Unsupported(u)) => assert!(u.reason.contains("sphere"), "{}", u.reason),
         Err(e) => panic!("{e}"),

@@ -197,7 +197,7 @@ impl ForceCurve for SphereRun {
 /// 2002, Biophys. J. 82, eq. 12, with `h = W`: `+1.8 %` at `W = 50 a`);
 /// finite strain (the default corotational law; strains ~ `a / R`): of
 /// order `a / R = 10 %` times a small constant — the linear law
-/// (`material_law = 1`) removes it. Measured values are in
+/// (`material_law = "linear"`) removes it. Measured values are in
 /// `comparisons/tests/sphere_indentation.rs`.
 pub const SPHERE_INDENTATION: Declared<SphereParams> = Declared {
     info: ScenarioInfo {

@@ -142,7 +142,7 @@ impl ChainmailWire {
     /// last normal wall projection keeps non-penetration. The friction's
     /// share of the hand force is the correction it made; the links carry it
     /// back to the clamp. Measured on `coronary-tortuous` (40 segments,
-    /// `beta_mapping=1`): without it the tip link ends compressed by 5.3 %
+    /// `beta_mapping=navigation`): without it the tip link ends compressed by 5.3 %
     /// at 38.0 s (2.6 % from the last wall pass, 2.7 % from friction); with
     /// it the first watchdog trip moves to 43.7 s (see the crate report).
     pub(super) fn restore_boxes_on_wall(&mut self) {

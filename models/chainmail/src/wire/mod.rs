@@ -60,18 +60,6 @@ pub enum BoxFrame {
     Link,
 }
 
-impl BoxFrame {
-    /// From the fidelity extra `frame` (0 world, 1 base, 2 link).
-    pub fn from_code(c: f64) -> Option<BoxFrame> {
-        match c {
-            0.0 => Some(BoxFrame::World),
-            1.0 => Some(BoxFrame::Base),
-            2.0 => Some(BoxFrame::Link),
-            _ => None,
-        }
-    }
-}
-
 /// Everything needed to build a wire besides the scene.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WireConfig {
@@ -253,7 +241,7 @@ impl ChainmailWire {
         let curved = rod.sections.iter().any(|s| s.rest_curvature != [0.0, 0.0]);
         if curved && cfg.frame != BoxFrame::Link {
             return Err(format!(
-                "rest curvature needs the link-frame boxes (frame=2): the {:?} boxes keep every link near the clamp direction",
+                "rest curvature needs the link-frame boxes (frame=link): the {:?} boxes keep every link near the clamp direction",
                 cfg.frame
             ));
         }

@@ -9,14 +9,19 @@ use crate::mls::MlsMap;
 use crate::pbd::PbdConstraints;
 use crate::pressure::PressureLoad;
 use surgbench_core::mesh::boundary_faces;
-use surgbench_core::{BuildError, Fidelity, ModelFactory, Scene, TissueBody, Unsupported, Vec3};
+use surgbench_core::{BuildError, Fidelity, Scene, Settings, TissueBody, Unsupported, Vec3};
 
 impl MeshlessTissue {
-    /// Build the tissue of `scene` (exactly one tissue body) at `fidelity`.
+    /// Build the tissue of `scene` (exactly one tissue body) at
+    /// `fidelity`, resolved by [`surgbench_core::resolve`].
     pub fn new(scene: &Scene, fidelity: &Fidelity) -> Result<Self, BuildError> {
-        MeshlessFactory.check(scene)?;
-        scene.validate().map_err(|e| BuildError::bad("scene", e))?;
-        let set = MeshlessSettings::resolve(scene, fidelity)?;
+        Self::with_settings(scene, &surgbench_core::resolve(&MeshlessFactory, scene, fidelity)?)
+    }
+
+    /// Build the tissue of `scene` from settings resolved for it.
+    pub fn with_settings(scene: &Scene, settings: &Settings) -> Result<Self, BuildError> {
+        let set = MeshlessSettings::from_settings(scene, settings)?;
+        let fidelity = settings.fidelity();
         let body: &TissueBody = scene.tissues().next().expect("checked: one tissue");
         let mesh = &body.mesh;
         let nn = mesh.nodes.len();

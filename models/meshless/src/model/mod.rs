@@ -1,16 +1,16 @@
 //! The `meshless` model: factory, settings and the time stepper.
 //!
 //! **Integrators** (fidelity `integrator`):
-//! * `0` symplectic Euler, `v += h (f / m + g - c v)`, `x += h v`
+//! * `symplectic-euler`, `v += h (f / m + g - c v)`, `x += h v`
 //!   (explicit, the seed's choice). Conditionally stable:
 //!   `h < 2 / omega_max`, `omega_max^2` the largest eigenvalue of `M^-1 K`;
 //!   [`MeshlessTissue::critical_dt`] estimates it by power iteration.
-//! * `1` backward Euler: each step minimises the incremental potential
+//! * `backward-euler`: each step minimises the incremental potential
 //!   `sum m/(2h^2) |x - x_n - h v_n|^2 + c m/(2h) |x - x_n|^2 + U(x) - m g . x`
 //!   by Newton's method with matrix-free conjugate gradients (exact
 //!   Hessian-vector products) and an Armijo line search; unconditionally
 //!   stable (numerically damped), `v = (x - x_n) / h`.
-//! * `2` quasi-static: the same Newton minimisation without the inertia
+//! * `quasi-static`: the same Newton minimisation without the inertia
 //!   terms (`U(x) - m g . x` with the boundary conditions at this step's
 //!   command): every step is an equilibrium. Default when the scene settles.
 //!
@@ -81,8 +81,8 @@
 //! Units are SI throughout.
 
 use surgbench_core::{
-    BuildError, Capability, EnergyObs, Family, Fidelity, FidelityKey, Mat3, Model, ModelFactory, Scene, Unsupported,
-    Vec3,
+    BuildError, Capability, Choice, EnergyObs, Family, Fidelity, FidelityKey, Mat3, Model, ModelFactory, Scene,
+    Settings, Unsupported, Vec3,
 };
 
 use crate::contact::SphereContact;
@@ -98,46 +98,55 @@ mod solve;
 
 /// Fidelity extras of `meshless` (besides `dt` and `iterations` = PBD sweeps).
 pub const MESHLESS_KEYS: &[FidelityKey] = &[
-    FidelityKey {
-        name: "support_factor",
-        doc: "poly6 support radius h_i over node i's local edge length (mean edge of the tets around it; default 1.5)",
-    },
-    FidelityKey {
-        name: "mls_factor",
-        doc: "MLS surface-mapping radius over the local edge length of the surface node (default 2.0)",
-    },
-    FidelityKey {
-        name: "stabilization",
-        doc: "hourglass-control stiffness over Young's modulus, gamma (default 0.1; 0 = off)",
-    },
-    FidelityKey {
-        name: "integrator",
-        doc: "0 symplectic Euler, 1 backward Euler (default dynamic), 2 quasi-static (default when the scene settles)",
-    },
-    FidelityKey {
-        name: "damping",
-        doc: "mass-proportional damping rate c (1/s); default 0, explicit on settling scenes 2 omega_1",
-    },
-    FidelityKey {
-        name: "pbd",
-        doc: "1 = add the seed's PBD corrections (edge stretch + virtual-tet energy), 0 = off (default)",
-    },
-    FidelityKey {
-        name: "pbd_stretch",
-        doc: "PBD stretch stiffness in [0, 1] (default 0.5)",
-    },
-    FidelityKey {
-        name: "pbd_tet",
-        doc: "PBD virtual-tet energy stiffness in [0, 1] (default 0.5)",
-    },
-    FidelityKey {
-        name: "support_floor",
-        doc: "radius floor over the longest mesh edge at the node, applied where support_factor x the local edge gives a nearly flat neighbourhood (rcond < 1e-3) (default 1.05: the support holds the node's mesh star, which spans 3D; 0 = off)",
-    },
-    FidelityKey {
-        name: "contact_stiffness",
-        doc: "sphere contact penalty factor kappa: node stiffness kappa E/(1-nu^2) sqrt(node boundary area) (default 100; penetration ~ contact strain / kappa of the node spacing)",
-    },
+    FidelityKey::number(
+        "support_factor",
+        "poly6 support radius h_i over node i's local edge length (mean edge of the tets around it; default 1.5)",
+    ),
+    FidelityKey::number(
+        "mls_factor",
+        "MLS surface-mapping radius over the local edge length of the surface node (default 2.0)",
+    ),
+    FidelityKey::number(
+        "stabilization",
+        "hourglass-control stiffness over Young's modulus, gamma (default 0.1; 0 = off)",
+    ),
+    FidelityKey::choice(
+        "integrator",
+        "time integrator",
+        &[
+            Choice::new("symplectic-euler", "symplectic (semi-implicit) Euler, explicit"),
+            Choice::new("backward-euler", "backward Euler by Newton-CG (default dynamic)"),
+            Choice::new(
+                "quasi-static",
+                "static equilibrium every step by Newton-CG (default when the scene settles)",
+            ),
+        ],
+    ),
+    FidelityKey::number(
+        "damping",
+        "mass-proportional damping rate c (1/s); default 0, explicit on settling scenes 2 omega_1",
+    ),
+    FidelityKey::switch(
+        "pbd",
+        "1 = add the seed's PBD corrections (edge stretch + virtual-tet energy), 0 = off (default)",
+    ),
+    FidelityKey::number("pbd_stretch", "PBD stretch stiffness in [0, 1] (default 0.5)"),
+    FidelityKey::number("pbd_tet", "PBD virtual-tet energy stiffness in [0, 1] (default 0.5)"),
+    FidelityKey::number(
+        "support_floor",
+        "radius floor over the longest mesh edge at the node, applied where support_factor x the local edge gives a nearly flat neighbourhood (rcond < 1e-3) (default 1.05: the support holds the node's mesh star, which spans 3D; 0 = off)",
+    ),
+    FidelityKey::number(
+        "contact_stiffness",
+        "sphere contact penalty factor kappa: node stiffness kappa E/(1-nu^2) sqrt(node boundary area) (default 100; penetration ~ contact strain / kappa of the node spacing)",
+    ),
+];
+
+/// The names of `integrator`, as integrators.
+const INTEGRATORS: &[(&str, Integrator)] = &[
+    ("symplectic-euler", Integrator::SymplecticEuler),
+    ("backward-euler", Integrator::BackwardEuler),
+    ("quasi-static", Integrator::QuasiStatic),
 ];
 
 /// Time integrator.
@@ -183,13 +192,10 @@ pub struct MeshlessSettings {
 }
 
 impl MeshlessSettings {
-    /// Resolve `fidelity` over the defaults for `scene`, rejecting unknown
-    /// extras and out-of-range values.
-    pub fn resolve(scene: &Scene, fidelity: &Fidelity) -> Result<Self, BuildError> {
-        fidelity
-            .check_extras(MESHLESS_KEYS)
-            .map_err(|e| BuildError::bad("fidelity", e.0))?;
-        let f = MeshlessFactory.default_fidelity(scene).merged(fidelity);
+    /// The tissue's knobs from `settings` resolved for `scene`, rejecting
+    /// out-of-range values.
+    pub fn from_settings(scene: &Scene, settings: &Settings) -> Result<Self, BuildError> {
+        let f = settings.fidelity();
         let dt = f.dt.unwrap_or(1e-3);
         let iterations = f.iterations.unwrap_or(5);
         let positive = |name: &str, v: f64| {
@@ -206,23 +212,18 @@ impl MeshlessSettings {
                 Err(BuildError::bad(name, format!("must be in [0, 1], got {v}")))
             }
         };
-        let flag = |name: &str, v: f64| match v {
-            0.0 => Ok(false),
-            1.0 => Ok(true),
-            _ => Err(BuildError::bad(name, format!("must be 0 or 1, got {v}"))),
+        let default_integrator = if scene.settle.is_some() {
+            Integrator::QuasiStatic
+        } else {
+            Integrator::BackwardEuler
         };
-        let integrator = match f.extra("integrator", if scene.settle.is_some() { 2.0 } else { 1.0 }) {
-            0.0 => Integrator::SymplecticEuler,
-            1.0 => Integrator::BackwardEuler,
-            2.0 => Integrator::QuasiStatic,
-            v => return Err(BuildError::bad("integrator", format!("must be 0, 1 or 2, got {v}"))),
-        };
-        let damping = match f.extras.get("damping") {
+        let integrator = settings.pick("integrator", INTEGRATORS, default_integrator)?;
+        let damping = match settings.number("damping") {
             None => None,
-            Some(&c) if c >= 0.0 && c.is_finite() => Some(c),
-            Some(&c) => return Err(BuildError::bad("damping", format!("must be >= 0 1/s, got {c}"))),
+            Some(c) if c >= 0.0 && c.is_finite() => Some(c),
+            Some(c) => return Err(BuildError::bad("damping", format!("must be >= 0 1/s, got {c}"))),
         };
-        let stabilization = f.extra("stabilization", 0.1);
+        let stabilization = settings.number_or("stabilization", 0.1);
         if !(stabilization >= 0.0 && stabilization.is_finite()) {
             return Err(BuildError::bad(
                 "stabilization",
@@ -232,19 +233,22 @@ impl MeshlessSettings {
         Ok(Self {
             dt: positive("dt", dt)?,
             iterations,
-            support_factor: positive("support_factor", f.extra("support_factor", 1.5))?,
-            mls_factor: positive("mls_factor", f.extra("mls_factor", 2.0))?,
+            support_factor: positive("support_factor", settings.number_or("support_factor", 1.5))?,
+            mls_factor: positive("mls_factor", settings.number_or("mls_factor", 2.0))?,
             stabilization,
             integrator,
             damping,
-            pbd: flag("pbd", f.extra("pbd", 0.0))?,
-            pbd_stretch: unit("pbd_stretch", f.extra("pbd_stretch", 0.5))?,
-            pbd_tet: unit("pbd_tet", f.extra("pbd_tet", 0.5))?,
-            support_floor: match f.extra("support_floor", DEFAULT_SUPPORT_FLOOR) {
+            pbd: settings.switch("pbd", false),
+            pbd_stretch: unit("pbd_stretch", settings.number_or("pbd_stretch", 0.5))?,
+            pbd_tet: unit("pbd_tet", settings.number_or("pbd_tet", 0.5))?,
+            support_floor: match settings.number_or("support_floor", DEFAULT_SUPPORT_FLOOR) {
                 v if v >= 0.0 && v.is_finite() => v,
                 v => return Err(BuildError::bad("support_floor", format!("must be >= 0, got {v}"))),
             },
-            contact_stiffness: positive("contact_stiffness", f.extra("contact_stiffness", DEFAULT_KAPPA))?,
+            contact_stiffness: positive(
+                "contact_stiffness",
+                settings.number_or("contact_stiffness", DEFAULT_KAPPA),
+            )?,
         })
     }
 }
@@ -297,8 +301,8 @@ impl ModelFactory for MeshlessFactory {
         }
         Ok(())
     }
-    fn build(&self, scene: &Scene, fidelity: &Fidelity) -> Result<Box<dyn Model>, BuildError> {
-        Ok(Box::new(MeshlessTissue::new(scene, fidelity)?))
+    fn build_resolved(&self, scene: &Scene, settings: &Settings) -> Result<Box<dyn Model>, BuildError> {
+        Ok(Box::new(MeshlessTissue::with_settings(scene, settings)?))
     }
 }
 

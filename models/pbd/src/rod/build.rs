@@ -2,14 +2,18 @@
 
 use super::*;
 use surgbench_core::band::BandMatrix;
-use surgbench_core::{BuildError, DeviceCommand, Fidelity, ModelFactory, RodBody, Scene, Vec3};
+use surgbench_core::{BuildError, DeviceCommand, Fidelity, RodBody, Scene, Settings, Vec3};
 
 impl PbdRod {
-    /// Build the rod of `scene` (exactly one rod) at `fidelity`.
+    /// Build the rod of `scene` (exactly one rod) at `fidelity`, resolved
+    /// by [`surgbench_core::resolve`].
     pub fn new(scene: &Scene, fidelity: &Fidelity) -> Result<Self, BuildError> {
-        PbdRodFactory.check(scene)?;
-        scene.validate().map_err(|e| BuildError::bad("scene", e))?;
-        let set = RodSettings::resolve(scene, fidelity)?;
+        Self::with_settings(scene, &surgbench_core::resolve(&PbdRodFactory, scene, fidelity)?)
+    }
+
+    /// Build the rod of `scene` from settings resolved for it.
+    pub fn with_settings(scene: &Scene, settings: &Settings) -> Result<Self, BuildError> {
+        let set = RodSettings::from_settings(settings)?;
         let rod: &RodBody = scene.rods().next().expect("checked: one rod");
         let n = set.segments;
         let l = rod.length / n as f64;

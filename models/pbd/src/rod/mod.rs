@@ -23,9 +23,9 @@
 //! state rather than with the isotropic approximation of K&S.
 //!
 //! Per iteration the constraints are solved either one at a time by
-//! non-linear Gauss-Seidel (fidelity `solver = 0`, the default) or all at
+//! non-linear Gauss-Seidel (fidelity `solver = "gauss-seidel"`, the default) or all at
 //! once by the direct banded solve of Deul, Kugelstadt, Weiler & Bender 2018
-//! (`solver = 1`, [`RodSolver::Direct`]), which carries a tip load to the
+//! (`solver = "direct"`, [`RodSolver::Direct`]), which carries a tip load to the
 //! clamp in one iteration (measured: a dead load P L^2/(EI) = 2 settles at one
 //! substep of 1 ms with 4 iterations at 10-80 segments, residual < 1e-14,
 //! where Gauss-Seidel diverges below 64 substeps).
@@ -50,8 +50,8 @@ use surgbench_core::band::BandMatrix;
 use surgbench_core::beam::first_bending_frequency;
 use surgbench_core::flow::FlowField;
 use surgbench_core::{
-    BuildError, Capability, DeviceCommand, Environment, Family, Fidelity, FidelityKey, Iso3, LoadRamp, Mat3, Model,
-    ModelFactory, Scene, Sdf, Unsupported, Vec3,
+    BuildError, Capability, Choice, DeviceCommand, Environment, Family, Fidelity, FidelityKey, Iso3, LoadRamp, Mat3,
+    Model, ModelFactory, Scene, Sdf, Settings, Unsupported, Vec3,
 };
 
 type Quat = Quaternion<f64>;
@@ -72,32 +72,39 @@ pub const SDF_LIPSCHITZ_BOUND: f64 = 2.0;
 
 /// Fidelity extras of `pbd-rod`.
 pub const ROD_KEYS: &[FidelityKey] = &[
-    FidelityKey {
-        name: "substeps",
-        doc: "XPBD substeps per step (integer >= 1; default 1)",
-    },
-    FidelityKey {
-        name: "damping",
-        doc: "velocity damping rate c (1/s): v <- v / (1 + c h) each substep; default 0, or 2 omega_1 (critical for the first bending mode) in static scenes",
-    },
-    FidelityKey {
-        name: "solver",
-        doc: "constraint solver per iteration: 0 = non-linear Gauss-Seidel over the constraints (default), 1 = direct: all rod constraints linearised and solved at once by banded Cholesky (Deul et al. 2018)",
-    },
+    FidelityKey::number("substeps", "XPBD substeps per step (integer >= 1; default 1)"),
+    FidelityKey::number(
+        "damping",
+        "velocity damping rate c (1/s): v <- v / (1 + c h) each substep; default 0, or 2 omega_1 (critical for the first bending mode) in static scenes",
+    ),
+    FidelityKey::choice(
+        "solver",
+        "constraint solver per iteration",
+        &[
+            Choice::new("gauss-seidel", "non-linear Gauss-Seidel over the constraints (default)"),
+            Choice::new(
+                "direct",
+                "all rod constraints linearised and solved at once by banded Cholesky (Deul et al. 2018)",
+            ),
+        ],
+    ),
 ];
+
+/// The names of `solver`, as rod solvers.
+const ROD_SOLVERS: &[(&str, RodSolver)] = &[("gauss-seidel", RodSolver::GaussSeidel), ("direct", RodSolver::Direct)];
 
 /// How each XPBD iteration of `pbd-rod` solves the rod constraints
 /// (fidelity extra `solver`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum RodSolver {
-    /// `solver = 0`: non-linear Gauss-Seidel, one constraint at a time in
+    /// `solver = "gauss-seidel"`: non-linear Gauss-Seidel, one constraint at a time in
     /// the order `BT_0, SS_0, BT_1, SS_1, ...` (Macklin et al. 2016, eq. 18
     /// per constraint). Cheap per iteration, but information travels one
     /// segment per sweep, so a load at the tip reaches the clamp only after
     /// `O(n)` iterations.
     #[default]
     GaussSeidel,
-    /// `solver = 1`: the direct solver of Deul, Kugelstadt, Weiler & Bender
+    /// `solver = "direct"`: the direct solver of Deul, Kugelstadt, Weiler & Bender
     /// 2018 ("Direct Position-Based Solver for Stiff Rods", Computer Graphics
     /// Forum 37(6), sec. 4): per iteration all rod constraints are
     /// linearised at the current state and the whole XPBD system
@@ -149,7 +156,7 @@ impl ModelFactory for PbdRodFactory {
             iterations: Some(20),
             extras: Default::default(),
         };
-        f.extras.insert("substeps".into(), 4.0);
+        f.extras.insert("substeps".into(), 4.0.into());
         // A dead tip load enters the prediction as h^2 F / m_tip, which on a
         // light tip particle can be many segment lengths; the chain's
         // Gauss-Seidel then cannot carry it back to the clamp within the
@@ -167,7 +174,7 @@ impl ModelFactory for PbdRodFactory {
             if fmax > 0.0 {
                 let h_max = l * (0.1 * s.density * s.area() / (2.0 * fmax)).sqrt();
                 let ns = (dt / h_max).ceil().clamp(4.0, 1e4);
-                f.extras.insert("substeps".into(), ns);
+                f.extras.insert("substeps".into(), ns.into());
             }
         }
         // Static scenes are run to equilibrium with the model's own damping:
@@ -177,7 +184,7 @@ impl ModelFactory for PbdRodFactory {
             && let Some(rod) = scene.rods().next()
         {
             let w1 = first_bending_frequency(&rod.sections[0], rod.length);
-            f.extras.insert("damping".into(), 2.0 * w1);
+            f.extras.insert("damping".into(), (2.0 * w1).into());
         }
         f
     }
@@ -191,8 +198,8 @@ impl ModelFactory for PbdRodFactory {
             ))),
         }
     }
-    fn build(&self, scene: &Scene, fidelity: &Fidelity) -> Result<Box<dyn Model>, BuildError> {
-        Ok(Box::new(PbdRod::new(scene, fidelity)?))
+    fn build_resolved(&self, scene: &Scene, settings: &Settings) -> Result<Box<dyn Model>, BuildError> {
+        Ok(Box::new(PbdRod::with_settings(scene, settings)?))
     }
 }
 
@@ -214,17 +221,14 @@ pub struct RodSettings {
 }
 
 impl RodSettings {
-    /// Resolve `fidelity` over the factory defaults, rejecting bad values.
-    pub fn resolve(scene: &Scene, fidelity: &Fidelity) -> Result<Self, BuildError> {
-        fidelity
-            .check_extras(ROD_KEYS)
-            .map_err(|e| BuildError::bad("fidelity", e.0))?;
-        let f = PbdRodFactory.default_fidelity(scene).merged(fidelity);
+    /// The rod's knobs from resolved `settings`, rejecting out-of-range values.
+    pub fn from_settings(settings: &Settings) -> Result<Self, BuildError> {
+        let f = settings.fidelity();
         let segments = f.segments.unwrap_or(50);
         let dt = f.dt.unwrap_or(1e-3);
         let iterations = f.iterations.unwrap_or(20);
-        let substeps = f.extra("substeps", 1.0);
-        let damping = f.extra("damping", 0.0);
+        let substeps = settings.number_or("substeps", 1.0);
+        let damping = settings.number_or("damping", 0.0);
         if !(1..=100_000).contains(&segments) {
             return Err(BuildError::bad(
                 "segments",
@@ -232,16 +236,7 @@ impl RodSettings {
             ));
         }
         crate::check_solver_knobs(dt, iterations, substeps, damping)?;
-        let solver = match f.extra("solver", 0.0) {
-            0.0 => RodSolver::GaussSeidel,
-            1.0 => RodSolver::Direct,
-            v => {
-                return Err(BuildError::bad(
-                    "solver",
-                    format!("must be 0 (Gauss-Seidel) or 1 (direct), got {v}"),
-                ));
-            }
-        };
+        let solver = settings.pick("solver", ROD_SOLVERS, RodSolver::GaussSeidel)?;
         Ok(Self {
             segments,
             dt,
@@ -535,8 +530,8 @@ mod tests {
             iterations: Some(1),
             ..Default::default()
         };
-        fid.extras.insert("substeps".into(), 1.0);
-        fid.extras.insert("solver".into(), 1.0);
+        fid.extras.insert("substeps".into(), 1.0.into());
+        fid.extras.insert("solver".into(), "direct".into());
         let mut rod = PbdRod::new(&scene, &fid).unwrap();
         let n = rod.n;
         let h = 1e-3;

@@ -8,14 +8,18 @@ use std::collections::HashMap;
 use std::sync::Arc;
 use surgbench_core::material::lame;
 use surgbench_core::mesh::tet_volume_of as tet_volume;
-use surgbench_core::{BuildError, Fidelity, ModelFactory, Scene, Unsupported, Vec3};
+use surgbench_core::{BuildError, Fidelity, Scene, Settings, Unsupported, Vec3};
 
 impl PbdTissue {
-    /// Build the tissue of `scene` (exactly one tissue body) at `fidelity`.
+    /// Build the tissue of `scene` (exactly one tissue body) at
+    /// `fidelity`, resolved by [`surgbench_core::resolve`].
     pub fn new(scene: &Scene, fidelity: &Fidelity) -> Result<Self, BuildError> {
-        PbdTissueFactory.check(scene)?;
-        scene.validate().map_err(|e| BuildError::bad("scene", e))?;
-        let set = TissueSettings::resolve(scene, fidelity)?;
+        Self::with_settings(scene, &surgbench_core::resolve(&PbdTissueFactory, scene, fidelity)?)
+    }
+
+    /// Build the tissue of `scene` from settings resolved for it.
+    pub fn with_settings(scene: &Scene, settings: &Settings) -> Result<Self, BuildError> {
+        let set = TissueSettings::from_settings(settings)?;
         let body = scene.tissues().next().expect("checked: one tissue");
         if body.indenter.is_some() && set.hash_box > 0.0 {
             return Err(Unsupported::new(

@@ -82,7 +82,7 @@ use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
 use surgbench_core::{
     BuildError, Capability, DeviceCommand, EnergyObs, Family, Fidelity, FidelityKey, Model, ModelFactory, Observation,
-    Scene, SimError, StepStats, TissueBody, TissueObs, Unsupported, Vec3,
+    Scene, Settings, SimError, StepStats, TissueBody, TissueObs, Unsupported, Vec3,
 };
 
 mod build;
@@ -119,26 +119,17 @@ pub fn project_volume(p: &mut [Vec3; 4], w: [f64; 4], rest: f64, alpha_tilde: f6
 
 /// Fidelity extras of `pbd-tissue`.
 pub const TISSUE_KEYS: &[FidelityKey] = &[
-    FidelityKey {
-        name: "substeps",
-        doc: "XPBD substeps per step (integer >= 1; default 1)",
-    },
-    FidelityKey {
-        name: "damping",
-        doc: "velocity damping rate c (1/s): v <- v / (1 + c h) each substep; default 0",
-    },
-    FidelityKey {
-        name: "hash_box",
-        doc: "local activation box edge d (m); 0 = off (default)",
-    },
-    FidelityKey {
-        name: "hash_span",
-        doc: "box expansion span (m); default d/3",
-    },
-    FidelityKey {
-        name: "threads",
-        doc: "worker threads of the constraint solve (integer >= 1; default min(2, available cores)); results are bit-identical for any count",
-    },
+    FidelityKey::number("substeps", "XPBD substeps per step (integer >= 1; default 1)"),
+    FidelityKey::number(
+        "damping",
+        "velocity damping rate c (1/s): v <- v / (1 + c h) each substep; default 0",
+    ),
+    FidelityKey::number("hash_box", "local activation box edge d (m); 0 = off (default)"),
+    FidelityKey::number("hash_span", "box expansion span (m); default d/3"),
+    FidelityKey::number(
+        "threads",
+        "worker threads of the constraint solve (integer >= 1; default min(2, available cores)); results are bit-identical for any count",
+    ),
 ];
 
 /// Factory for the tetrahedral XPBD tissue (`pbd-tissue`).
@@ -196,8 +187,8 @@ impl ModelFactory for PbdTissueFactory {
         }
         Ok(())
     }
-    fn build(&self, scene: &Scene, fidelity: &Fidelity) -> Result<Box<dyn Model>, BuildError> {
-        Ok(Box::new(PbdTissue::new(scene, fidelity)?))
+    fn build_resolved(&self, scene: &Scene, settings: &Settings) -> Result<Box<dyn Model>, BuildError> {
+        Ok(Box::new(PbdTissue::with_settings(scene, settings)?))
     }
 }
 
@@ -221,18 +212,15 @@ pub struct TissueSettings {
 }
 
 impl TissueSettings {
-    /// Resolve `fidelity` over the factory defaults, rejecting bad values.
-    pub fn resolve(scene: &Scene, fidelity: &Fidelity) -> Result<Self, BuildError> {
-        fidelity
-            .check_extras(TISSUE_KEYS)
-            .map_err(|e| BuildError::bad("fidelity", e.0))?;
-        let f = PbdTissueFactory.default_fidelity(scene).merged(fidelity);
+    /// The tissue's knobs from resolved `settings`, rejecting out-of-range values.
+    pub fn from_settings(settings: &Settings) -> Result<Self, BuildError> {
+        let f = settings.fidelity();
         let dt = f.dt.unwrap_or(1e-3);
         let iterations = f.iterations.unwrap_or(10);
-        let substeps = f.extra("substeps", 1.0);
-        let damping = f.extra("damping", 0.0);
-        let hash_box = f.extra("hash_box", 0.0);
-        let hash_span = f.extra("hash_span", hash_box / 3.0);
+        let substeps = settings.number_or("substeps", 1.0);
+        let damping = settings.number_or("damping", 0.0);
+        let hash_box = settings.number_or("hash_box", 0.0);
+        let hash_span = settings.number_or("hash_span", hash_box / 3.0);
         crate::check_solver_knobs(dt, iterations, substeps, damping)?;
         if !(hash_box >= 0.0 && hash_box.is_finite()) {
             return Err(BuildError::bad("hash_box", format!("must be >= 0 m, got {hash_box}")));
@@ -241,7 +229,7 @@ impl TissueSettings {
             return Err(BuildError::bad("hash_span", format!("must be >= 0 m, got {hash_span}")));
         }
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-        let threads = f.extra("threads", cores.min(2) as f64);
+        let threads = settings.number_or("threads", cores.min(2) as f64);
         if !(threads >= 1.0 && threads.fract() == 0.0 && threads <= 256.0) {
             return Err(BuildError::bad(
                 "threads",
