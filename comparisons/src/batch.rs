@@ -17,6 +17,8 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 use surgbench_reports::{HapticRow, ResultRow, RunInfo, RunSummary, Status};
 
+pub use surgbench_reports::staging::{replace_dir, temp_sibling};
+
 /// How to run a comparison.
 #[derive(Debug, Clone)]
 pub struct BatchOptions {
@@ -452,27 +454,6 @@ pub fn run_info(comparison: &str, opts: &BatchOptions) -> RunInfo {
     }
 }
 
-/// Move `tmp` into place at `out`, keeping `out` intact until the new one
-/// is complete.
-pub fn replace_dir(tmp: &Path, out: &Path) -> std::io::Result<()> {
-    if out.exists() {
-        let old = out.with_file_name(format!(
-            ".{}.old-{}",
-            out.file_name().and_then(|n| n.to_str()).unwrap_or("out"),
-            std::process::id()
-        ));
-        std::fs::rename(out, &old)?;
-        if let Err(e) = std::fs::rename(tmp, out) {
-            let _ = std::fs::rename(&old, out);
-            return Err(e);
-        }
-        let _ = std::fs::remove_dir_all(&old);
-        Ok(())
-    } else {
-        std::fs::rename(tmp, out)
-    }
-}
-
 /// Remove every temporary sibling of `out` ([`temp_sibling`], any pid).
 fn remove_temp_siblings(out: &Path) {
     let (Some(parent), Some(name)) = (out.parent(), out.file_name().and_then(|n| n.to_str())) else {
@@ -484,25 +465,6 @@ fn remove_temp_siblings(out: &Path) {
             let _ = std::fs::remove_dir_all(e.path());
         }
     }
-}
-
-/// A temporary sibling of `out` for building a replacement.
-pub fn temp_sibling(out: &Path) -> std::io::Result<PathBuf> {
-    let parent = out
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    std::fs::create_dir_all(parent)?;
-    let tmp = parent.join(format!(
-        ".{}.tmp-{}",
-        out.file_name().and_then(|n| n.to_str()).unwrap_or("out"),
-        std::process::id()
-    ));
-    if tmp.exists() {
-        std::fs::remove_dir_all(&tmp)?;
-    }
-    std::fs::create_dir_all(&tmp)?;
-    Ok(tmp)
 }
 
 /// `Err(Interrupted)` once a SIGINT/SIGTERM has reached the batch.
