@@ -463,7 +463,10 @@ fn cmd_report(dir: &Path) -> Result<(), Failure> {
 /// `surgbench gate`: count every workload, print the table, judge.
 fn cmd_gate(a: &GateArgs) -> Result<(), Failure> {
     let cfg = gate::load_config(&a.config)?;
-    let verdicts = gate::run_gate(&own_exe()?, &cfg, &a.baseline, a.update).map_err(Failure::Runtime)?;
+    // Before anything is measured: a baseline that cannot be read is an
+    // error, never an empty baseline that `--update` would write back.
+    let baseline = gate::load_baseline(&a.baseline)?;
+    let verdicts = gate::run_gate(&own_exe()?, &cfg, baseline, &a.baseline, a.update).map_err(Failure::Runtime)?;
     say!(
         "{:<60} {:>16} {:>16} {:>8}",
         "workload",
