@@ -84,7 +84,8 @@ impl Fidelity {
         Ok(())
     }
 
-    /// Parse `key=value` pairs (command line form).
+    /// Parse `key=value` pairs (command line form); a key given twice is an
+    /// error naming it.
     pub fn parse_pairs<S: AsRef<str>>(pairs: &[S]) -> Result<Self, FidelityError> {
         let mut f = Self::default();
         for p in pairs {
@@ -96,7 +97,13 @@ impl Fidelity {
                 .trim()
                 .parse()
                 .map_err(|_| FidelityError(format!("fidelity `{k}`: `{v}` is not a number")))?;
-            f.set(k.trim(), v)?;
+            let k = k.trim();
+            if let Some((_, first)) = f.pairs().into_iter().find(|(name, _)| name == k) {
+                return Err(FidelityError(format!(
+                    "fidelity `{k}` is given twice ({k}={first} and {k}={v}); give it once"
+                )));
+            }
+            f.set(k, v)?;
         }
         Ok(f)
     }
