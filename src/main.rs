@@ -20,6 +20,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use surgbench_comparisons::batch::{self, BatchError, BatchOptions};
 use surgbench_comparisons::comparison::Comparison;
+use surgbench_comparisons::datasets::project_root;
 use surgbench_comparisons::gate;
 use surgbench_comparisons::haptic::run_haptic_loop;
 use surgbench_comparisons::outdir;
@@ -72,7 +73,8 @@ enum Cmd {
 /// `surgbench run`.
 #[derive(Args)]
 struct RunArgs {
-    /// Comparison name (comparisons/NAME.toml) or path to a .toml file.
+    /// Comparison name (comparisons/NAME.toml in the project root: the nearest
+    /// folder up from here holding comparisons/, or $SURGBENCH_ROOT) or path to a .toml file.
     #[arg(default_value = "standard")]
     comparison: String,
     /// Only these models (comma-separated ids).
@@ -81,7 +83,9 @@ struct RunArgs {
     /// Smaller sweeps, one repeat: a report in a minute or two.
     #[arg(long)]
     quick: bool,
-    /// Report folder (default: reports/out/latest), replaced as a whole: an
+    /// Report folder (default: reports/out/latest in the project root: the
+    /// nearest folder up from here holding comparisons/, or $SURGBENCH_ROOT),
+    /// replaced as a whole: an
     /// earlier surgbench report or an empty folder (any other folder only
     /// with --force; a file never).
     #[arg(long)]
@@ -214,16 +218,6 @@ impl From<UsageError> for Failure {
     }
 }
 
-/// The folder holding `comparisons/`: the current directory if it has one,
-/// else the source tree this binary was built from.
-fn project_root() -> PathBuf {
-    if Path::new("comparisons").is_dir() {
-        PathBuf::from(".")
-    } else {
-        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-    }
-}
-
 fn find_comparison(name: &str) -> Result<PathBuf, UsageError> {
     let p = Path::new(name);
     if p.extension().is_some_and(|e| e == "toml") || p.components().count() > 1 {
@@ -237,7 +231,11 @@ fn find_comparison(name: &str) -> Result<PathBuf, UsageError> {
     if f.is_file() {
         Ok(f)
     } else {
-        Err(UsageError(format!("unknown comparison `{name}` (no {})", f.display())))
+        Err(UsageError(format!(
+            "unknown comparison `{name}` (no {}): run from a surgbench checkout, set SURGBENCH_ROOT \
+             to one, or give the path of a .toml file",
+            f.display()
+        )))
     }
 }
 
@@ -480,7 +478,10 @@ fn cmd_report(dir: &Path) -> Result<(), Failure> {
 /// `surgbench gate`: count every workload, print the table, judge.
 fn cmd_gate(a: &GateArgs) -> Result<(), Failure> {
     let cfg = gate::load_config(&a.config)?;
-    let verdicts = gate::run_gate(&own_exe()?, &cfg, &a.baseline, a.update).map_err(Failure::Runtime)?;
+    // Before anything is measured: a baseline that cannot be read is an
+    // error, never an empty baseline that `--update` would write back.
+    let baseline = gate::load_baseline(&a.baseline)?;
+    let verdicts = gate::run_gate(&own_exe()?, &cfg, baseline, &a.baseline, a.update).map_err(Failure::Runtime)?;
     say!(
         "{:<60} {:>16} {:>16} {:>8}",
         "workload",

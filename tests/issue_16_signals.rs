@@ -8,10 +8,12 @@
 //! child, removes its temporary folder and exits 130 / 143; an earlier
 //! report at `--out` is left byte for byte as it was.
 
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
+
+mod common;
+use common::snapshot;
 
 /// Every wait in this file ends by then: the runs here take well under a
 /// second each, so a minute only ever runs out when something hangs.
@@ -34,23 +36,6 @@ fn comparison(dir: &Path, name: &str, model: &str) -> PathBuf {
     )
     .unwrap();
     p
-}
-
-/// Every file under `dir` with its bytes.
-fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
-    let mut out = BTreeMap::new();
-    let mut todo = vec![dir.to_path_buf()];
-    while let Some(d) = todo.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                todo.push(p);
-            } else {
-                out.insert(p.strip_prefix(dir).unwrap().to_path_buf(), std::fs::read(&p).unwrap());
-            }
-        }
-    }
-    out
 }
 
 /// Live processes whose command line mentions `needle`: pid, parent pid

@@ -17,6 +17,8 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 use surgbench_reports::{HapticRow, ResultRow, RunInfo, RunSummary, Status};
 
+pub use surgbench_reports::staging::{replace_dir, temp_sibling};
+
 /// How to run a comparison.
 #[derive(Debug, Clone)]
 pub struct BatchOptions {
@@ -171,20 +173,60 @@ fn run_child(cmd: Command, err_path: &Path, timeout: f64, opts: &BatchOptions) -
     }
 }
 
-/// A job's folder under the report: `runs/<scenario>[@<params>]/<model>/<fidelity>`.
-fn run_dir_of(job: &Job) -> PathBuf {
+/// Longest folder or file name (bytes) [`folder_name`] gives; file systems
+/// refuse names over 255 bytes.
+const MAX_NAME: usize = 100;
+
+/// `v` for a folder name: as the CSV writes it (`0.001`, `20`) when that is
+/// short, else the shortest round-trip scientific form (`1e300`, not three
+/// hundred digits). Distinct values keep distinct names.
+fn folder_number(v: f64) -> String {
+    let plain = format!("{v}");
+    if plain.len() <= 16 { plain } else { format!("{v:e}") }
+}
+
+/// `k=v;k=v` of `pairs` with [`folder_number`]s.
+fn folder_pairs<'a>(pairs: impl IntoIterator<Item = (&'a str, f64)>) -> String {
+    let p: Vec<String> = pairs
+        .into_iter()
+        .map(|(k, v)| format!("{k}={}", folder_number(v)))
+        .collect();
+    p.join(";")
+}
+
+/// A file-name-safe name for `s` ([`slug`]) of at most [`MAX_NAME`] bytes:
+/// a longer slug keeps its first 80 bytes and ends in `~` and a hash
+/// (FNV-1a, 64 bits) of the whole, so names stay short, unique and the same
+/// from run to run.
+pub fn folder_name(s: &str) -> String {
+    let slug = slug(s);
+    if slug.len() <= MAX_NAME {
+        return slug;
+    }
+    let hash = s.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
+        (h ^ b as u64).wrapping_mul(0x0100_0000_01b3)
+    });
+    // The slug is ASCII, so any byte index is a character boundary.
+    format!("{}~{hash:016x}", &slug[..80])
+}
+
+/// A job's folder under the report: `runs/<scenario>[@<params>]/<model>/<fidelity>`,
+/// the parameters and the fidelity each a [`folder_name`].
+pub fn run_dir_of(job: &Job) -> PathBuf {
     // Parameter overrides are part of the folder name: one scenario may
     // appear several times in a comparison with different parameters.
     let scen_dir = if job.params.is_empty() {
         job.scenario.clone()
     } else {
-        let p: Vec<String> = job.params.iter().map(|(k, v)| format!("{k}={v}")).collect();
-        format!("{}@{}", job.scenario, slug(&p.join(";")))
+        let p = folder_pairs(job.params.iter().map(|(k, v)| (k.as_str(), *v)));
+        format!("{}@{}", job.scenario, folder_name(&p))
     };
+    let pairs = job.fidelity.pairs();
+    let fid = folder_pairs(pairs.iter().map(|(k, v)| (k.as_str(), *v)));
     PathBuf::from("runs")
         .join(scen_dir)
         .join(&job.model)
-        .join(slug(&job.fidelity.to_string()))
+        .join(folder_name(&fid))
 }
 
 /// Run one job in a child process; returns its row, or the signal that
@@ -317,9 +359,10 @@ fn exit_description(s: &std::process::ExitStatus) -> String {
 }
 
 /// Run one haptic loop in a child process (`surgbench haptic ... --csv`):
-/// a panicking or hanging model becomes a `failed` / `timeout` row; a
+/// a panicking or hanging model, or one still running after `limit` s (the
+/// batch's wall-clock limit per run), becomes a `failed` / `timeout` row; a
 /// signal to the batch is returned as [`BatchError::Interrupted`].
-fn run_haptic_job(job: &HapticJob, dir: &Path, opts: &BatchOptions) -> Result<HapticRow, BatchError> {
+fn run_haptic_job(job: &HapticJob, dir: &Path, opts: &BatchOptions, limit: f64) -> Result<HapticRow, BatchError> {
     let mut row = HapticRow {
         model: job.model.clone(),
         scenario: job.scenario.clone(),
@@ -333,7 +376,9 @@ fn run_haptic_job(job: &HapticJob, dir: &Path, opts: &BatchOptions) -> Result<Ha
         row.reason = reason.clone();
         return Ok(row);
     }
-    let stem = slug(&format!("{}-{}-{}", job.model, job.scenario, job.fidelity));
+    let pairs = job.fidelity.pairs();
+    let fid = folder_pairs(pairs.iter().map(|(k, v)| (k.as_str(), *v)));
+    let stem = folder_name(&format!("{}-{}-{fid}", job.model, job.scenario));
     let csv = dir.join(format!("{stem}.csv"));
     let err_path = dir.join(format!("{stem}.stderr.txt"));
     let mut cmd = child_command(opts, "haptic", &job.model, &job.scenario, &job.params, &job.fidelity);
@@ -343,8 +388,9 @@ fn run_haptic_job(job: &HapticJob, dir: &Path, opts: &BatchOptions) -> Result<Ha
         .arg(job.duration_s.to_string())
         .arg("--csv")
         .arg(&csv);
-    // Model build and the loop's own duration, with room for a slow machine.
-    let timeout = 2.0 * job.duration_s + 120.0;
+    // Model build and the loop's own duration, with room for a slow
+    // machine, and never past the batch's limit per run (`limit`, s).
+    let timeout = (2.0 * job.duration_s + 120.0).min(limit);
     match run_child(cmd, &err_path, timeout, opts) {
         ChildEnd::Interrupted(sig) => return Err(BatchError::Interrupted(sig)),
         ChildEnd::Failed(status, reason) => (row.status, row.reason) = (status, reason),
@@ -452,27 +498,6 @@ pub fn run_info(comparison: &str, opts: &BatchOptions) -> RunInfo {
     }
 }
 
-/// Move `tmp` into place at `out`, keeping `out` intact until the new one
-/// is complete.
-pub fn replace_dir(tmp: &Path, out: &Path) -> std::io::Result<()> {
-    if out.exists() {
-        let old = out.with_file_name(format!(
-            ".{}.old-{}",
-            out.file_name().and_then(|n| n.to_str()).unwrap_or("out"),
-            std::process::id()
-        ));
-        std::fs::rename(out, &old)?;
-        if let Err(e) = std::fs::rename(tmp, out) {
-            let _ = std::fs::rename(&old, out);
-            return Err(e);
-        }
-        let _ = std::fs::remove_dir_all(&old);
-        Ok(())
-    } else {
-        std::fs::rename(tmp, out)
-    }
-}
-
 /// Remove every temporary sibling of `out` ([`temp_sibling`], any pid).
 fn remove_temp_siblings(out: &Path) {
     let (Some(parent), Some(name)) = (out.parent(), out.file_name().and_then(|n| n.to_str())) else {
@@ -486,23 +511,24 @@ fn remove_temp_siblings(out: &Path) {
     }
 }
 
-/// A temporary sibling of `out` for building a replacement.
-pub fn temp_sibling(out: &Path) -> std::io::Result<PathBuf> {
-    let parent = out
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    std::fs::create_dir_all(parent)?;
-    let tmp = parent.join(format!(
-        ".{}.tmp-{}",
-        out.file_name().and_then(|n| n.to_str()).unwrap_or("out"),
-        std::process::id()
-    ));
-    if tmp.exists() {
-        std::fs::remove_dir_all(&tmp)?;
+/// Every job that runs writes its own folder: two jobs with one folder
+/// (the same scenario, parameters, model and fidelity listed twice, e.g.
+/// by two entries of one scenario) are a usage error naming it.
+fn check_distinct_folders(jobs: &[Job]) -> Result<(), crate::UsageError> {
+    let mut seen = std::collections::BTreeSet::new();
+    for job in jobs.iter().filter(|j| j.unsupported.is_none()) {
+        let dir = run_dir_of(job);
+        if !seen.insert(dir.clone()) {
+            return Err(crate::UsageError(format!(
+                "the comparison lists one run twice ({} with {} at [{}]): {} would be written twice; list it once",
+                job.scenario,
+                job.model,
+                job.fidelity,
+                dir.display()
+            )));
+        }
     }
-    std::fs::create_dir_all(&tmp)?;
-    Ok(tmp)
+    Ok(())
 }
 
 /// `Err(Interrupted)` once a SIGINT/SIGTERM has reached the batch.
@@ -516,11 +542,19 @@ fn interrupted() -> Result<(), BatchError> {
 pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultRow>, BatchError> {
     let started = Instant::now();
     crate::outdir::check_replaceable(&opts.out, opts.force)?;
+    if opts.quick {
+        // The quick sweeps are a subset of the comparison: its full sweeps
+        // are validated too, so that a mistake in them shows now, not in
+        // the long run.
+        c.jobs(false, opts.models.as_deref())?;
+        c.haptic_jobs(false, opts.models.as_deref())?;
+    }
     let jobs = c.jobs(opts.quick, opts.models.as_deref())?;
     let haptic_jobs = c.haptic_jobs(opts.quick, opts.models.as_deref())?;
     if jobs.is_empty() {
         return Err(crate::UsageError("the comparison selects no runs (no models match?)".into()).into());
     }
+    check_distinct_folders(&jobs)?;
     let repeats = if opts.quick {
         1
     } else {
@@ -554,7 +588,7 @@ pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultR
         let mut haptic = Vec::with_capacity(haptic_jobs.len());
         for job in &haptic_jobs {
             bar.set_message(format!("haptic {} / {} at {} Hz", job.scenario, job.model, job.rate_hz));
-            haptic.push(run_haptic_job(job, &runs, opts)?);
+            haptic.push(run_haptic_job(job, &runs, opts, timeout)?);
             interrupted()?;
             bar.inc(1);
         }

@@ -174,6 +174,15 @@ fn expand(grid: &Grid) -> Result<Vec<Fidelity>, UsageError> {
         if vals.is_empty() {
             return Err(UsageError(format!("sweep of `{k}` is empty")));
         }
+        if let Some(v) = vals
+            .iter()
+            .enumerate()
+            .find_map(|(i, v)| vals[..i].contains(v).then_some(v))
+        {
+            return Err(UsageError(format!(
+                "sweep of `{k}` lists {v} twice (each value is one run and one folder); list it once"
+            )));
+        }
         let mut next = Vec::new();
         for f in &out {
             for v in vals {

@@ -190,12 +190,57 @@ pub struct Verdict {
     pub pass: bool,
 }
 
-/// Count every workload; compare with the baseline (or write it).
-pub fn run_gate(exe: &Path, cfg: &GateConfig, baseline_path: &Path, update: bool) -> Result<Vec<Verdict>, String> {
-    let mut all = match std::fs::read_to_string(baseline_path) {
-        Ok(t) => Baseline::parse(&t).map_err(|e| format!("{}: {e}", baseline_path.display()))?,
-        Err(_) => Baseline::default(),
+/// Reads the baseline file at `path`. An absent file is an empty baseline
+/// (the first `--update` records one); anything else that cannot be read
+/// as a baseline (a folder, an unreadable file, bytes that are not UTF-8,
+/// malformed JSON) is a [`UsageError`] naming the file: it is never taken
+/// for an empty baseline, which `--update` would write back without the
+/// other CPUs' counts.
+pub fn load_baseline(path: &Path) -> Result<Baseline, UsageError> {
+    let bad = |what: String| {
+        UsageError(format!(
+            "baseline {}: {what}; nothing was measured or written (fix the file or restore it from version control)",
+            path.display()
+        ))
     };
+    let bytes = match std::fs::read(path) {
+        Ok(b) => b,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Baseline::default()),
+        Err(e) => return Err(bad(format!("cannot read it: {e}"))),
+    };
+    let text = String::from_utf8(bytes).map_err(|e| {
+        bad(format!(
+            "not UTF-8 text (invalid byte at offset {})",
+            e.utf8_error().valid_up_to()
+        ))
+    })?;
+    Baseline::parse(&text).map_err(|e| bad(format!("not a gate baseline: {e}")))
+}
+
+/// Writes `baseline` to `path` through a temporary file in the same folder
+/// renamed over it: a failed write (full disk, a killed process) leaves
+/// the earlier baseline as it was.
+pub fn save_baseline(path: &Path, baseline: &Baseline) -> Result<(), String> {
+    let json = serde_json::to_string_pretty(baseline).map_err(|e| e.to_string())? + "\n";
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("baseline");
+    let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
+    let written = std::fs::write(&tmp, json).and_then(|()| std::fs::rename(&tmp, path));
+    written.map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        format!("cannot write {}: {e}", path.display())
+    })
+}
+
+/// Count every workload and compare with `baseline` (from
+/// [`load_baseline`]); with `update`, record this CPU's counts in it
+/// (the other CPUs' are kept) and write it to `baseline_path`.
+pub fn run_gate(
+    exe: &Path,
+    cfg: &GateConfig,
+    mut all: Baseline,
+    baseline_path: &Path,
+    update: bool,
+) -> Result<Vec<Verdict>, String> {
     let cpu = cpu_model();
     let base = match all.by_cpu.get(&cpu) {
         Some(b) => b.clone(),
@@ -226,9 +271,7 @@ pub fn run_gate(exe: &Path, cfg: &GateConfig, baseline_path: &Path, update: bool
     }
     if update {
         all.by_cpu.insert(cpu, new);
-        let json = serde_json::to_string_pretty(&all).map_err(|e| e.to_string())?;
-        std::fs::write(baseline_path, json + "\n")
-            .map_err(|e| format!("cannot write {}: {e}", baseline_path.display()))?;
+        save_baseline(baseline_path, &all)?;
     }
     Ok(verdicts)
 }

@@ -450,6 +450,7 @@ pub fn run_checked(
     record_verdict(&mut s.outcome, &reps);
     let rep = reps.first;
     if let Some(errors) = rep.errors {
+        flag_non_finite(&mut s.outcome, &errors);
         s.errors = errors;
         // The model's own diagnostics, prefixed so they never shadow a
         // scenario metric.
@@ -595,6 +596,26 @@ fn record_verdict(o: &mut Outcome, reps: &Repeats) {
     }
     if o.status == Status::Unset {
         o.status = Status::Ok;
+    }
+}
+
+/// A run whose state stayed finite but whose error metrics are not (an
+/// infinite or NaN error against the reference: e.g. reference or phantom
+/// data with a value near `f64::MAX`) has no error to report: an `ok` run
+/// becomes `failed`, its reason naming the metrics, instead of `ok` with
+/// the numbers missing (JSON writes NaN and infinity as `null`).
+fn flag_non_finite(o: &mut Outcome, errors: &BTreeMap<String, f64>) {
+    let bad: Vec<String> = errors
+        .iter()
+        .filter(|(_, v)| !v.is_finite())
+        .map(|(k, v)| format!("{k} = {v}"))
+        .collect();
+    if !bad.is_empty() && o.status == Status::Ok {
+        o.status = Status::Failed;
+        o.reason = format!(
+            "error metrics not finite ({}) although the model's state is: check the scenario's reference data",
+            bad.join(", ")
+        );
     }
 }
 

@@ -197,22 +197,28 @@ impl Params {
     }
 }
 
-/// Parse `key=value` parameter overrides.
+/// Parse `key=value` parameter overrides; a name given twice is an error
+/// naming it (it would otherwise keep one of the two silently).
 pub fn parse_overrides<S: AsRef<str>>(pairs: &[S]) -> Result<Vec<(String, f64)>, UsageError> {
-    pairs
-        .iter()
-        .map(|p| {
-            let p = p.as_ref();
-            let (k, v) = p
-                .split_once('=')
-                .ok_or_else(|| UsageError(format!("parameter `{p}` is not of the form name=value")))?;
-            let x: f64 = v
-                .trim()
-                .parse()
-                .map_err(|_| UsageError(format!("parameter `{k}`: `{v}` is not a number")))?;
-            Ok((k.trim().to_string(), x))
-        })
-        .collect()
+    let mut out: Vec<(String, f64)> = Vec::with_capacity(pairs.len());
+    for p in pairs {
+        let p = p.as_ref();
+        let (k, v) = p
+            .split_once('=')
+            .ok_or_else(|| UsageError(format!("parameter `{p}` is not of the form name=value")))?;
+        let x: f64 = v
+            .trim()
+            .parse()
+            .map_err(|_| UsageError(format!("parameter `{k}`: `{v}` is not a number")))?;
+        let k = k.trim();
+        if let Some((_, first)) = out.iter().find(|(name, _)| name == k) {
+            return Err(UsageError(format!(
+                "parameter `{k}` is given twice ({k}={first} and {k}={x}); give it once"
+            )));
+        }
+        out.push((k.to_string(), x));
+    }
+    Ok(out)
 }
 
 /// Error metrics of one observation (SI; names end in their unit or `_rel`).

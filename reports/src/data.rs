@@ -227,14 +227,6 @@ fn parse_bool(s: &str) -> Result<Option<bool>, String> {
     }
 }
 
-fn csv_err(path: &Path, e: csv::Error) -> ReportError {
-    let line = e.position().map(|p| p.line()).unwrap_or(0);
-    match e.into_kind() {
-        csv::ErrorKind::Io(io) => ReportError::io(path, io),
-        kind => ReportError::parse(path, line, "(row)", format!("{kind:?}")),
-    }
-}
-
 /// Writes `rows` to `path` as the tidy `results.csv`.
 ///
 /// Header: the [`FIXED_COLUMNS`] in order, then one column per metric name
@@ -251,13 +243,13 @@ pub fn write_results_csv(path: &Path, rows: &[ResultRow]) -> Result<(), ReportEr
             });
         }
     }
-    let mut w = csv::Writer::from_path(path).map_err(|e| csv_err(path, e))?;
+    let mut w = csv::Writer::from_path(path).map_err(|e| ReportError::csv(path, e))?;
     let header: Vec<&str> = FIXED_COLUMNS
         .iter()
         .copied()
         .chain(metric_names.iter().copied())
         .collect();
-    w.write_record(&header).map_err(|e| csv_err(path, e))?;
+    w.write_record(&header).map_err(|e| ReportError::csv(path, e))?;
     for row in rows {
         let mut row = row.clone();
         let mut rec: Vec<String> = Vec::with_capacity(header.len());
@@ -273,7 +265,7 @@ pub fn write_results_csv(path: &Path, rows: &[ResultRow]) -> Result<(), ReportEr
         for m in &metric_names {
             rec.push(row.metrics.get(*m).copied().map(format_f64).unwrap_or_default());
         }
-        w.write_record(&rec).map_err(|e| csv_err(path, e))?;
+        w.write_record(&rec).map_err(|e| ReportError::csv(path, e))?;
     }
     w.flush().map_err(|e| ReportError::io(path, e))
 }
@@ -289,10 +281,10 @@ pub fn read_results_csv(path: &Path) -> Result<Vec<ResultRow>, ReportError> {
     let mut rd = csv::ReaderBuilder::new()
         .flexible(true)
         .from_path(path)
-        .map_err(|e| csv_err(path, e))?;
+        .map_err(|e| ReportError::csv(path, e))?;
     let header: Vec<String> = rd
         .headers()
-        .map_err(|e| csv_err(path, e))?
+        .map_err(|e| ReportError::csv(path, e))?
         .iter()
         .map(|h| h.trim().to_string())
         .collect();
@@ -319,7 +311,7 @@ pub fn read_results_csv(path: &Path) -> Result<Vec<ResultRow>, ReportError> {
 
     let mut rows = Vec::new();
     for rec in rd.records() {
-        let rec = rec.map_err(|e| csv_err(path, e))?;
+        let rec = rec.map_err(|e| ReportError::csv(path, e))?;
         let line = rec.position().map(|p| p.line()).unwrap_or(0);
         if rec.len() != header.len() {
             let col = header
@@ -443,10 +435,10 @@ pub fn read_series(path: &Path) -> Result<Series, ReportError> {
     let mut rd = csv::ReaderBuilder::new()
         .flexible(true)
         .from_path(path)
-        .map_err(|e| csv_err(path, e))?;
+        .map_err(|e| ReportError::csv(path, e))?;
     let header: Vec<String> = rd
         .headers()
-        .map_err(|e| csv_err(path, e))?
+        .map_err(|e| ReportError::csv(path, e))?
         .iter()
         .map(|h| h.trim().to_string())
         .collect();
@@ -459,7 +451,7 @@ pub fn read_series(path: &Path) -> Result<Series, ReportError> {
     }
     let mut s = Series::default();
     for rec in rd.records() {
-        let rec = rec.map_err(|e| csv_err(path, e))?;
+        let rec = rec.map_err(|e| ReportError::csv(path, e))?;
         let line = rec.position().map(|p| p.line()).unwrap_or(0);
         if rec.len() != header.len() {
             return Err(ReportError::parse(

@@ -68,6 +68,28 @@ impl ReportError {
         }
     }
 
+    /// A CSV reader's or writer's error, in words: an I/O error stays one;
+    /// a file that is not UTF-8 text (a binary file) or a ragged row is
+    /// said so, with the line.
+    pub(crate) fn csv(path: &Path, e: csv::Error) -> Self {
+        let line = e.position().map(|p| p.line()).unwrap_or(0);
+        let message = match e.kind() {
+            csv::ErrorKind::Utf8 { err, .. } => format!(
+                "not UTF-8 text (is it a binary file?): field {} has an invalid byte after {} valid bytes",
+                err.field() + 1,
+                err.valid_up_to()
+            ),
+            csv::ErrorKind::UnequalLengths { expected_len, len, .. } => {
+                format!("{len} fields where the first row has {expected_len}")
+            }
+            _ => e.to_string(),
+        };
+        match e.into_kind() {
+            csv::ErrorKind::Io(io) => ReportError::io(path, io),
+            _ => ReportError::parse(path, line, "(row)", message),
+        }
+    }
+
     pub(crate) fn plot(path: &Path, message: impl fmt::Display) -> Self {
         ReportError::Plot {
             path: path.to_path_buf(),

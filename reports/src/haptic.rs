@@ -66,19 +66,11 @@ pub const HAPTIC_COLUMNS: [&str; 14] = [
     "jitter_max_ms",
 ];
 
-fn csv_err(path: &Path, e: csv::Error) -> ReportError {
-    let line = e.position().map(|p| p.line()).unwrap_or(0);
-    match e.into_kind() {
-        csv::ErrorKind::Io(io) => ReportError::io(path, io),
-        kind => ReportError::parse(path, line, "(row)", format!("{kind:?}")),
-    }
-}
-
 /// Writes `rows` to `path` (header = the [`HapticRow`] field names).
 pub fn write_haptic_csv(path: &Path, rows: &[HapticRow]) -> Result<(), ReportError> {
-    let mut w = csv::Writer::from_path(path).map_err(|e| csv_err(path, e))?;
+    let mut w = csv::Writer::from_path(path).map_err(|e| ReportError::csv(path, e))?;
     for r in rows {
-        w.serialize(r).map_err(|e| csv_err(path, e))?;
+        w.serialize(r).map_err(|e| ReportError::csv(path, e))?;
     }
     w.flush().map_err(|e| ReportError::io(path, e))
 }
@@ -86,15 +78,17 @@ pub fn write_haptic_csv(path: &Path, rows: &[HapticRow]) -> Result<(), ReportErr
 /// Reads a `haptic.csv` written by [`write_haptic_csv`]; a missing column or
 /// a bad number is an error naming the file and line.
 pub fn read_haptic_csv(path: &Path) -> Result<Vec<HapticRow>, ReportError> {
-    let mut rd = csv::Reader::from_path(path).map_err(|e| csv_err(path, e))?;
-    let header = rd.headers().map_err(|e| csv_err(path, e))?.clone();
+    let mut rd = csv::Reader::from_path(path).map_err(|e| ReportError::csv(path, e))?;
+    let header = rd.headers().map_err(|e| ReportError::csv(path, e))?.clone();
     // serde would read an absent optional column as "not measured": refuse it.
     for name in HAPTIC_COLUMNS {
         if !header.iter().any(|h| h.trim() == name) {
             return Err(ReportError::parse(path, 1, name, "missing required column"));
         }
     }
-    rd.deserialize().map(|r| r.map_err(|e| csv_err(path, e))).collect()
+    rd.deserialize()
+        .map(|r| r.map_err(|e| ReportError::csv(path, e)))
+        .collect()
 }
 
 /// The report section: one table row per loop, with the miss ratio.

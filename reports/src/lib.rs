@@ -32,6 +32,7 @@ mod figure;
 mod format;
 mod haptic;
 mod render;
+pub mod staging;
 mod summary;
 
 pub use analysis::{fit_order, pareto_front};

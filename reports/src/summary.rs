@@ -80,7 +80,8 @@ file_words! {
         Unstable = "unstable",
         /// The model cannot run the scene; the reason says why.
         Unsupported = "unsupported",
-        /// The run crashed, could not start, or was not reproducible.
+        /// The run crashed, could not start, was not reproducible, or scored
+        /// errors that are not finite (the reason says which).
         Failed = "failed",
         /// Killed at the wall-clock limit.
         Timeout = "timeout",

@@ -1,10 +1,13 @@
 //! Helpers shared by the integration tests that run the `surgbench` binary.
 
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 /// Run `cmd` with stdout and stderr captured; past `limit` it is killed
 /// and the test fails naming `what`: a test of a hang never hangs itself.
+#[allow(dead_code)] // not every test file that includes this module uses it
 pub fn output_within(mut cmd: Command, limit: Duration, what: &str) -> Output {
     let mut child = cmd
         .env("RUST_BACKTRACE", "0")
@@ -22,4 +25,22 @@ pub fn output_within(mut cmd: Command, limit: Duration, what: &str) -> Output {
         std::thread::sleep(Duration::from_millis(10));
     }
     child.wait_with_output().unwrap()
+}
+
+/// Every file under `dir` (path relative to `dir`) with its bytes.
+#[allow(dead_code)] // not every test file that includes this module uses it
+pub fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+    let mut out = BTreeMap::new();
+    let mut todo = vec![dir.to_path_buf()];
+    while let Some(d) = todo.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                todo.push(p);
+            } else {
+                out.insert(p.strip_prefix(dir).unwrap().to_path_buf(), std::fs::read(&p).unwrap());
+            }
+        }
+    }
+    out
 }

@@ -191,7 +191,8 @@ impl Fidelity {
         Ok(())
     }
 
-    /// Parse `key=value` pairs (command line form).
+    /// Parse `key=value` pairs (command line form); a key given twice is an
+    /// error naming it.
     pub fn parse_pairs<S: AsRef<str>>(pairs: &[S]) -> Result<Self, FidelityError> {
         let mut f = Self::default();
         for p in pairs {
@@ -199,8 +200,14 @@ impl Fidelity {
             let (k, v) = p
                 .split_once('=')
                 .ok_or_else(|| FidelityError(format!("fidelity `{p}` is not of the form key=value")))?;
-            let v = Setting::parse(v).map_err(|e| FidelityError(format!("fidelity `{}`: {e}", k.trim())))?;
-            f.set_setting(k.trim(), v)?;
+            let k = k.trim();
+            let v = Setting::parse(v).map_err(|e| FidelityError(format!("fidelity `{k}`: {e}")))?;
+            if let Some((_, first)) = f.pairs().into_iter().find(|(name, _)| name == k) {
+                return Err(FidelityError(format!(
+                    "fidelity `{k}` is given twice ({k}={first} and {k}={v}); give it once"
+                )));
+            }
+            f.set_setting(k, v)?;
         }
         Ok(f)
     }

@@ -8,7 +8,7 @@ use crate::analysis::coarse_to_fine;
 use crate::doc::{to_html, to_markdown};
 use crate::figure::{Line, Look, Marker, PALETTE, save};
 use crate::format::slug;
-use crate::{ReportError, ResultRow, RunInfo};
+use crate::{ReportError, ResultRow, RunInfo, staging};
 
 mod convergence;
 mod error_time;
@@ -80,7 +80,17 @@ pub fn render(dir: &Path, rows: &[ResultRow], info: &RunInfo) -> Result<Vec<Path
 /// Re-renders a report folder from its files alone: reads `dir/results.csv`
 /// and `dir/summary.json` (absent: an empty header, said so on the page) and
 /// calls [`render`]. This is what `surgbench report DIR` runs.
+///
+/// All or nothing: the new report is rendered into a temporary sibling of
+/// `dir` that starts as `dir`'s files (hard-linked, see
+/// [`crate::staging::link_tree`]) without its earlier plots and pages, and
+/// is moved into place only when every file is written. On any error (a
+/// malformed `haptic.csv`, a full disk) the temporary sibling is removed
+/// and `dir` keeps every file as it was.
 pub fn render_dir(dir: &Path) -> Result<Vec<PathBuf>, ReportError> {
+    // The real folder, so that `.` or a path ending in `..` has a name
+    // and a parent to stage beside.
+    let dir = &fs::canonicalize(dir).map_err(|e| ReportError::io(dir, e))?;
     let rows = crate::read_results_csv(&dir.join("results.csv"))?;
     let summary = dir.join("summary.json");
     let info = if summary.exists() {
@@ -88,7 +98,28 @@ pub fn render_dir(dir: &Path) -> Result<Vec<PathBuf>, ReportError> {
     } else {
         RunInfo::default()
     };
-    render(dir, &rows, &info)
+    let tmp = staging::temp_sibling(dir).map_err(|e| ReportError::io(dir, e))?;
+    let rendered = staging::link_tree(dir, &tmp, &is_rendered)
+        .map_err(|e| ReportError::io(dir, e))
+        .and_then(|()| render(&tmp, &rows, &info))
+        .and_then(|files| {
+            staging::replace_dir(&tmp, dir).map_err(|e| ReportError::io(dir, e))?;
+            Ok(files
+                .iter()
+                .map(|f| dir.join(f.strip_prefix(&tmp).unwrap_or(f)))
+                .collect())
+        });
+    if rendered.is_err() {
+        let _ = fs::remove_dir_all(&tmp);
+    }
+    rendered
+}
+
+/// Whether `rel` (relative to a report folder) is one of the files
+/// [`render`] writes anew: the pages and the plots.
+fn is_rendered(rel: &Path) -> bool {
+    let plot = rel.parent() == Some(Path::new("plots")) && rel.extension().is_some_and(|e| e == "svg" || e == "png");
+    plot || rel == Path::new("report.md") || rel == Path::new("index.html")
 }
 
 fn write_atomic(path: &Path, text: &str) -> Result<(), ReportError> {
