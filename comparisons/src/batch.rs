@@ -185,12 +185,18 @@ fn folder_number(v: f64) -> String {
     if plain.len() <= 16 { plain } else { format!("{v:e}") }
 }
 
-/// `k=v;k=v` of `pairs` with [`folder_number`]s.
-fn folder_pairs<'a>(pairs: impl IntoIterator<Item = (&'a str, f64)>) -> String {
-    let p: Vec<String> = pairs
-        .into_iter()
-        .map(|(k, v)| format!("{k}={}", folder_number(v)))
-        .collect();
+/// A fidelity setting for a folder name: a number as [`folder_number`], a
+/// choice by its name.
+fn folder_setting(v: &surgbench_core::fidelity::Setting) -> String {
+    match v {
+        surgbench_core::fidelity::Setting::Number(x) => folder_number(*x),
+        surgbench_core::fidelity::Setting::Choice(c) => c.clone(),
+    }
+}
+
+/// `k=v;k=v` of `pairs` (values already formatted for a folder name).
+fn folder_pairs<'a>(pairs: impl IntoIterator<Item = (&'a str, String)>) -> String {
+    let p: Vec<String> = pairs.into_iter().map(|(k, v)| format!("{k}={v}")).collect();
     p.join(";")
 }
 
@@ -218,11 +224,11 @@ pub fn run_dir_of(job: &Job) -> PathBuf {
     let scen_dir = if job.params.is_empty() {
         job.scenario.clone()
     } else {
-        let p = folder_pairs(job.params.iter().map(|(k, v)| (k.as_str(), *v)));
+        let p = folder_pairs(job.params.iter().map(|(k, v)| (k.as_str(), folder_number(*v))));
         format!("{}@{}", job.scenario, folder_name(&p))
     };
     let pairs = job.fidelity.pairs();
-    let fid = folder_pairs(pairs.iter().map(|(k, v)| (k.as_str(), *v)));
+    let fid = folder_pairs(pairs.iter().map(|(k, v)| (k.as_str(), folder_setting(v))));
     PathBuf::from("runs")
         .join(scen_dir)
         .join(&job.model)
@@ -377,7 +383,7 @@ fn run_haptic_job(job: &HapticJob, dir: &Path, opts: &BatchOptions, limit: f64) 
         return Ok(row);
     }
     let pairs = job.fidelity.pairs();
-    let fid = folder_pairs(pairs.iter().map(|(k, v)| (k.as_str(), *v)));
+    let fid = folder_pairs(pairs.iter().map(|(k, v)| (k.as_str(), folder_setting(v))));
     let stem = folder_name(&format!("{}-{}-{fid}", job.model, job.scenario));
     let csv = dir.join(format!("{stem}.csv"));
     let err_path = dir.join(format!("{stem}.stderr.txt"));
