@@ -152,7 +152,7 @@ fn a_non_finite_error_is_a_failed_run_not_ok() {
             "--fidelity",
             "mesh_level=1",
             "--fidelity",
-            "integrator=2",
+            "integrator=quasi-static",
         ])
         .arg("--out")
         .arg(&out)
