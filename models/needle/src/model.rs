@@ -128,11 +128,12 @@ impl NeedleModel {
     /// `f_perlen d`; the tip point holds the cutting force against the tip's
     /// advance and nothing against its retreat (and the shaft, while no
     /// shaft point exists yet).
-    fn bounds(&self) -> Vec<Bounds> {
+    /// `xt`: the tissue's node positions (m).
+    fn bounds(&self, xt: &[Vec3]) -> Vec<Bounds> {
         let f = self.coupling.friction_per_length;
         let a: Vec<f64> = self.shaft.iter().map(|p| p.arclength).collect();
         let m = a.len();
-        let entry = self.entry_arclength().unwrap_or(0.0);
+        let entry = self.entry_arclength_at(xt).unwrap_or(0.0);
         let tip = self.tip_arclength();
         let mut out: Vec<Bounds> = (0..m)
             .map(|i| {
@@ -182,8 +183,14 @@ impl NeedleModel {
     /// Arclength (m) of the needle where it enters the tissue: the entry
     /// material point projected on the needle; `None` before entry.
     pub fn entry_arclength(&self) -> Option<f64> {
+        self.entry_arclength_at(&self.fem.positions())
+    }
+
+    /// [`Self::entry_arclength`] with the tissue's node positions `xt` (m)
+    /// the caller already holds.
+    fn entry_arclength_at(&self, xt: &[Vec3]) -> Option<f64> {
         let e = self.entry?;
-        Some(self.arclength_of(&e.position(&self.tets, &self.fem.positions())))
+        Some(self.arclength_of(&e.position(&self.tets, xt)))
     }
 
     /// Length of needle inside the tissue (m): tip minus entry arclength.
@@ -355,7 +362,7 @@ impl NeedleModel {
     /// crowd (nearly equal rows of `W`); the tissue point is the one on the
     /// needle there.
     fn add_shaft_points(&mut self, xt: &[Vec3], tip_a: f64) {
-        let Some(entry) = self.entry_arclength() else {
+        let Some(entry) = self.entry_arclength_at(xt) else {
             return;
         };
         let mut from = self.shaft.last().map_or(entry, |p| p.arclength);
@@ -398,7 +405,7 @@ impl Model for NeedleModel {
                 (0..3).for_each(|r| g_free[3 * i + r] = g.frame[r].dot(&u));
             }
             let w = self.delassus(&geo);
-            let sol = lcp::solve(&w, &g_free, &self.bounds(), &states, TAU_CHECK, MAX_TRIALS);
+            let sol = lcp::solve(&w, &g_free, &self.bounds(&xt), &states, TAU_CHECK, MAX_TRIALS);
             self.stats.steps += 1;
             self.stats.trials += sol.trials;
             self.stats.max_trials = self.stats.max_trials.max(sol.trials);
