@@ -33,6 +33,7 @@ impl ModelFactory for NeedleFactory {
             Capability::Tissue,
             Capability::NeedleTissue,
             Capability::Insertion,
+            Capability::PressureLoad,
         ]
     }
     /// 40 needle edges, `dt = 1 ms`, one Newton iteration per step (the
@@ -87,6 +88,14 @@ impl ModelFactory for NeedleFactory {
         };
         let fem =
             FemModel::new(tissue, scene.gravity, dt, params).map_err(|e| BuildError::bad("tissue", e.to_string()))?;
+        // A needle may start inside the tissue (pre-inserted), its guide
+        // sleeve may not: the clamp point (node 1, arclength 0) is outside.
+        if crate::coupling::locate(&tissue.mesh.tets, &tissue.mesh.nodes, &rod.node(1)).is_some() {
+            return Err(BuildError::bad(
+                "needle",
+                "the needle's base (guide sleeve) starts inside the tissue; it must stay outside",
+            ));
+        }
         let spacing = body.length / segments as f64;
         Ok(Box::new(NeedleModel::new(
             fem,

@@ -101,6 +101,47 @@ impl NeedleModel {
             entry: None,
             stats: LcpStats::default(),
         }
+        .pre_inserted()
+    }
+
+    /// A needle that starts inside the tissue (a channel cut before the
+    /// run, the tissue at rest around it): its entry is where the needle
+    /// crosses the tissue surface walking from the clamp, its tip touches
+    /// the channel end, and shaft points sit every `spacing` between, all
+    /// guessed STATIC. A needle whose tip starts outside is left as it is.
+    fn pre_inserted(mut self) -> Self {
+        let xt = self.fem.positions();
+        let tip_a = self.tip_arclength();
+        let inside = |m: &Self, a: f64| locate(&m.tets, &xt, &m.needle_point(a));
+        let Some(tip) = inside(&self, tip_a) else {
+            return self;
+        };
+        // First inside sample walking from the clamp, then bisection on the
+        // crossing to a millionth of a spacing.
+        let h = self.spacing / 8.0;
+        let mut hi = (0..)
+            .map(|k| (k as f64 * h).min(tip_a))
+            .find(|&a| inside(&self, a).is_some())
+            .expect("the tip is inside");
+        let mut lo = (hi - h).max(0.0);
+        while hi - lo > 1e-6 * self.spacing {
+            let mid = 0.5 * (lo + hi);
+            if inside(&self, mid).is_some() {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        self.entry = inside(&self, hi);
+        self.tip = Some(Point {
+            tissue: tip,
+            arclength: tip_a,
+            state: State::Static,
+        });
+        self.touching = true;
+        self.add_shaft_points(&xt, tip_a);
+        self.shaft.iter_mut().for_each(|p| p.state = State::Static);
+        self
     }
 
     /// The coupling points of the next step's LCP, ordered by arclength:

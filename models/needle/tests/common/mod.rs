@@ -46,3 +46,30 @@ pub fn scene(feed: &[(f64, f64)], cells: [usize; 3], f_perlen: f64, f_cut: f64) 
     });
     s
 }
+
+/// A stiff needle pre-inserted `depth` (m) along +x into a free gel block
+/// (same size and gel as [`scene`], no node held), its base held still; a
+/// uniform pressure `pressure` (Pa) on the entry face `x = 0`, scaled by the
+/// `load` keys `(t, factor)`, pushes the block along +x, off the needle.
+#[allow(dead_code)]
+pub fn pulled_scene(depth: f64, cells: [usize; 3], f_perlen: f64, pressure: f64, load: &[(f64, f64)]) -> Scene {
+    let mut s = scene(&[(0.0, 0.0)], cells, f_perlen, 0.05);
+    let surgbench_core::Body::Tissue(t) = &mut s.bodies[1] else {
+        unreachable!("the block is the second body")
+    };
+    t.fixed_nodes.clear();
+    t.pressure_faces = surgbench_core::mesh::boundary_faces(&t.mesh)
+        .into_iter()
+        .filter(|f| f.iter().all(|&i| t.mesh.nodes[i].x.abs() < 1e-12))
+        .map(|f| (f, pressure))
+        .collect();
+    let surgbench_core::Body::Rod(r) = &mut s.bodies[0] else {
+        unreachable!("the needle is the first body")
+    };
+    r.base = Iso3::translation(depth - NEEDLE_LENGTH, 0.0, 0.0);
+    s.duration = load.last().map_or(1.0, |k| k.0);
+    s.control = ControlTimeline {
+        keys: load.iter().map(|&(t, l)| ControlKey::load(t, l)).collect(),
+    };
+    s
+}
