@@ -1,24 +1,27 @@
 //! Needle insertion (the needle seed: Chentanez et al., SIGGRAPH 2009).
 //!
 //! Shared conventions (SI units): the needle enters along +x through the
-//! tissue face at `x = 0`; its tip starts `tip_gap` outside it and its base
-//! (the guide sleeve) never reaches the tissue. A gel block occupies
-//! `[0, block_length] x [-w/2, w/2]^2` (`w = block_width`) and is held at its
-//! far face `x = block_length`; its mesh has `8 * 2^level x 4 * 2^level x
-//! 4 * 2^level` cells (six tets each), so a mesh node sits on the needle's
-//! axis at the entry. The model reports `Observation::hand_force` as the
+//! tissue face at `x = 0`; its tip starts `tip_gap` outside it (or, where a
+//! scene says so, `depth` inside it) and its base (the guide sleeve) never
+//! reaches the tissue. A gel block occupies `[0, block_length] x
+//! [-w/2, w/2]^2` (`w = block_width`), held at its far face
+//! `x = block_length` unless a scene says otherwise; its mesh has
+//! `8 * 2^level x 4 * 2^level x 4 * 2^level` cells (six tets each), so a
+//! mesh node sits on the needle's axis at the entry. The model reports `Observation::hand_force` as the
 //! force the needle exerts on the hand: the hand pushes with its negative.
 
+mod stick_slip;
 mod straight;
 
+pub use stick_slip::{NEEDLE_STICK_SLIP, StickSlipParams};
 pub use straight::{NEEDLE_STRAIGHT, StraightParams};
 
 use crate::scenario::{Scenario, Sweep, UsageError};
-use surgbench_core::Fidelity;
+use surgbench_core::{Fidelity, Iso3, RodBody, SolidMaterial, TetMesh, Vec3, mesh};
 
 /// Every needle scenario, in report order.
 pub fn all() -> Vec<&'static dyn Scenario> {
-    vec![&NEEDLE_STRAIGHT]
+    vec![&NEEDLE_STRAIGHT, &NEEDLE_STICK_SLIP]
 }
 
 /// Finest mesh level: level 1 is 16 x 8 x 8 cells (6,144 tets); level 2
@@ -41,4 +44,52 @@ fn mesh_level(scenario: &str, fidelity: &Fidelity) -> Result<usize, UsageError> 
         )));
     }
     Ok(level)
+}
+
+/// The gel block of the needle scenes at mesh `level` (module docs): its
+/// mesh, the node at the entry on the needle's axis, and the gel.
+struct GelBlock {
+    mesh: TetMesh,
+    entry: usize,
+    material: SolidMaterial,
+    /// Node tolerance (m) for planes of the block.
+    tol: f64,
+}
+
+impl GelBlock {
+    /// `length` along the needle, `width` across (m); the gel's Young's
+    /// modulus (Pa), Poisson ratio and density (kg/m^3).
+    fn new(scenario: &str, level: usize, length: f64, width: f64, gel: [f64; 3]) -> Result<Self, UsageError> {
+        let k = 1usize << level;
+        let mut mesh = mesh::block(Vec3::new(length, width, width), [8 * k, 4 * k, 4 * k]);
+        for x in &mut mesh.nodes {
+            x.y -= 0.5 * width;
+            x.z -= 0.5 * width;
+        }
+        let tol = 1e-9 * length;
+        let entry = (0..mesh.nodes.len())
+            .find(|&i| mesh.nodes[i].norm() < tol)
+            .ok_or_else(|| UsageError(format!("{scenario}: no mesh node on the needle axis at the entry")))?;
+        let [youngs_modulus, poisson_ratio, density] = gel;
+        let material = SolidMaterial {
+            youngs_modulus,
+            poisson_ratio,
+            density,
+        };
+        Ok(Self {
+            mesh,
+            entry,
+            material,
+            tol,
+        })
+    }
+}
+
+/// A steel needle (Poisson ratio 0.3, 7,850 kg/m^3) of `length` and
+/// `radius` (m), Young's modulus `youngs` (Pa), along +x with its base (the
+/// guide sleeve) at `x = base_x` (m).
+fn needle(length: f64, radius: f64, youngs: f64, base_x: f64) -> RodBody {
+    let mut rod = RodBody::uniform(length, radius, youngs, 0.3, 7850.0);
+    rod.base = Iso3::translation(base_x, 0.0, 0.0);
+    rod
 }

@@ -10,10 +10,7 @@ use crate::params;
 use crate::scenario::{
     Declared, Inputs, Metrics, ParamSet, ParamSpec, Range, Reference, ScenarioInfo, ScenarioRun, Scorer,
 };
-use surgbench_core::{
-    Body, ControlKey, ControlTimeline, Family, Iso3, NeedleTissue, Observation, RodBody, Scene, SolidMaterial,
-    TissueBody, Vec3, mesh,
-};
+use surgbench_core::{Body, ControlKey, ControlTimeline, Family, NeedleTissue, Observation, Scene, TissueBody, mesh};
 
 params! {
     /// Parameters of `needle-straight`. Gel: E and nu of 10 wt% gelatin as
@@ -152,25 +149,16 @@ fn build(p: &StraightParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError>
             p.depth, p.block_length, p.retraction
         )));
     }
-    let (w, k) = (p.block_width, 1usize << level);
-    let mut tissue_mesh = mesh::block(Vec3::new(p.block_length, w, w), [8 * k, 4 * k, 4 * k]);
-    for x in &mut tissue_mesh.nodes {
-        x.y -= 0.5 * w;
-        x.z -= 0.5 * w;
-    }
-    let tol = 1e-9 * p.block_length;
-    let entry = (0..tissue_mesh.nodes.len())
-        .find(|&i| tissue_mesh.nodes[i].norm() < tol)
-        .ok_or_else(|| UsageError(format!("{id}: no mesh node on the needle axis at the entry")))?;
-    let material = SolidMaterial {
-        youngs_modulus: p.youngs_modulus,
-        poisson_ratio: p.poisson_ratio,
-        density: p.density,
-    };
-    let mut tissue = TissueBody::new(tissue_mesh.clone(), material);
-    tissue.fixed_nodes = mesh::nodes_on_plane(&tissue_mesh, 0, p.block_length, tol);
-    let mut needle = RodBody::uniform(p.needle_length, p.needle_radius, p.needle_youngs_modulus, 0.3, 7850.0);
-    needle.base = Iso3::translation(-p.tip_gap - p.needle_length, 0.0, 0.0);
+    let gel = [p.youngs_modulus, p.poisson_ratio, p.density];
+    let block = GelBlock::new(id, level, p.block_length, p.block_width, gel)?;
+    let mut tissue = TissueBody::new(block.mesh.clone(), block.material);
+    tissue.fixed_nodes = mesh::nodes_on_plane(&block.mesh, 0, p.block_length, block.tol);
+    let needle = needle(
+        p.needle_length,
+        p.needle_radius,
+        p.needle_youngs_modulus,
+        -p.tip_gap - p.needle_length,
+    );
     let v = p.insertion_speed;
     let x_in = p.tip_gap + p.depth;
     let t_insert = x_in / v;
@@ -199,7 +187,7 @@ fn build(p: &StraightParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError>
     let reference = StraightRef {
         f_perlen,
         f_cut,
-        entry,
+        entry: block.entry,
         t_insert,
         t_hold,
     };
