@@ -34,12 +34,21 @@ pub fn barycentric(p: [Vec3; 4], x: &Vec3) -> Option<[f64; 4]> {
 /// largest. `None` if `x` is outside every tet by more than `1e-9` in
 /// barycentric terms. Linear search: the caller does it once per new point.
 pub fn locate(tets: &[[usize; 4]], nodes: &[Vec3], x: &Vec3) -> Option<Embedded> {
+    locate_within(tets, nodes, x, 1e-9)
+}
+
+/// [`locate`] accepting `x` up to `slack` outside a tet in barycentric
+/// terms (its smallest weight `>= -slack`), the tet whose smallest weight
+/// is the largest. Where the tissue is strongly deformed around the tip,
+/// inverted or sliver tets leave gaps in the deformed mesh that a strict
+/// search falls through.
+pub fn locate_within(tets: &[[usize; 4]], nodes: &[Vec3], x: &Vec3, slack: f64) -> Option<Embedded> {
     let mut best: Option<(f64, Embedded)> = None;
     for (e, t) in tets.iter().enumerate() {
         let p = t.map(|i| nodes[i]);
         let Some(w) = barycentric(p, x) else { continue };
         let lo = w.iter().copied().fold(f64::INFINITY, f64::min);
-        if lo >= -1e-9 && best.as_ref().is_none_or(|b| lo > b.0) {
+        if lo >= -slack && best.as_ref().is_none_or(|b| lo > b.0) {
             best = Some((lo, Embedded { tet: e, w }));
         }
     }

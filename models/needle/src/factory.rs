@@ -47,7 +47,7 @@ impl ModelFactory for NeedleFactory {
         }
     }
     /// Needle scenes only (one rod, one tissue, a needle-tissue interaction);
-    /// viscous friction and bevel tips are not modelled yet.
+    /// viscous friction is not modelled yet.
     fn check(&self, scene: &Scene) -> Result<(), Unsupported> {
         check_capabilities(self.id(), self.capabilities(), scene)?;
         let Some(n) = &scene.needle else {
@@ -55,9 +55,6 @@ impl ModelFactory for NeedleFactory {
         };
         if n.viscous_friction > 0.0 {
             return Err(Unsupported::new("needle does not model viscous shaft friction yet"));
-        }
-        if n.bevel_angle > 0.0 {
-            return Err(Unsupported::new("needle does not model bevel tips yet"));
         }
         Ok(())
     }

@@ -27,9 +27,15 @@
 //! * `Observation::hand_force` is, as for every model, the force the needle
 //!   exerts on the hand (N): inserting, it points along -x.
 //!
-//! Not yet (issue 17 and 18): tip remeshing, bevel tips, viscous shaft
-//! friction and the seed's CG solver (the factory says `Unsupported` for
-//! scenes that need the first three).
+//! * A bevel tip (seed Sec. 3.5) cuts its new channel end `d tan(psi)`
+//!   beside the tip along the tip edge's material axis m_2. With embedded
+//!   points the tissue around the tip distorts: a new channel end that no
+//!   deformed tet contains strictly is found within a quarter tet
+//!   ([`model::TIP_SLACK`]); the diagnostics count such cuts and lost tips.
+//! * A needle may start inside the tissue (a channel cut before the run).
+//!
+//! Not yet (issues 17 and 18): tip remeshing, viscous shaft friction (the
+//! factory says `Unsupported`) and the seed's CG solver.
 //!
 //! Units are SI: m, kg, s, N, Pa.
 

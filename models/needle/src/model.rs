@@ -3,7 +3,7 @@
 //! points and the friction-state LCP of [`crate::lcp`] solved through the
 //! Schur complement on the coupling points.
 
-use crate::coupling::{Embedded, OnNeedle, frame, locate, on_needle};
+use crate::coupling::{Embedded, OnNeedle, frame, locate, locate_within, on_needle};
 use crate::lcp::{self, Bounds, State};
 use nalgebra::DMatrix;
 use std::collections::BTreeMap;
@@ -15,6 +15,11 @@ use surgbench_fem::FemModel;
 pub const TAU_CHECK: f64 = 1e-3;
 /// The seed's trial limit of the LCP (Algorithm 3).
 pub const MAX_TRIALS: usize = 10;
+/// How far (barycentric) outside its nearest tet a new channel end may lie
+/// and still count as inside the tissue: a quarter of a tet, so that gaps
+/// the deformed mesh opens around the tip do not drop the tip point, while
+/// a tip that leaves the tissue loses it within a quarter tet.
+pub const TIP_SLACK: f64 = 0.25;
 
 /// A coupling point: a tissue material point held on the needle at an
 /// arclength, with its friction state.
@@ -39,6 +44,12 @@ pub struct LcpStats {
     pub max_trials: usize,
     /// Steps that ended without a consistent configuration.
     pub unresolved: usize,
+    /// Cuts whose new channel end no tet of the deformed mesh contains
+    /// strictly (inverted or sliver tets around the tip), found within
+    /// [`TIP_SLACK`] instead.
+    pub tip_fallbacks: usize,
+    /// Times the tip point was dropped: the tip left the tissue.
+    pub tip_lost: usize,
 }
 
 /// Frame, needle and tissue stencils and start-of-step gap of one point.
@@ -335,7 +346,8 @@ impl NeedleModel {
     /// on while it slides forward, stays behind as the channel end when the
     /// tip retreats and touches again when the tip comes back to it; a
     /// shaft point joins every `spacing` along the needle inside the tissue;
-    /// a tip that has just entered the tissue gets its point.
+    /// a tip that has just entered the tissue gets its point. `slips`: each
+    /// point's slip along the needle this step (m, + the needle advanced).
     fn update_points(&mut self, states: &[State], slips: &[f64]) {
         let tip_a = self.tip_arclength();
         let m = self.shaft.len();
@@ -354,21 +366,39 @@ impl NeedleModel {
         let last = self.rod.num_nodes() - 1;
         let tip_x = self.rod.node(last);
         let along = (tip_x - self.rod.node(last - 1)).normalize();
+        // A bevel tip cuts its new channel end `h = d tan(psi)` along the tip
+        // edge's material axis m_2, `d` the length it cut this step (seed
+        // Sec. 3.5): the tissue then pushes the tip towards m_2.
+        let cut = slips.get(m).copied().unwrap_or(0.0).max(0.0);
+        let m2: Vec3 = self.rod.material_frame(last - 1).column(1).into_owned();
+        let bevel_offset = m2 * (cut * self.coupling.bevel_angle.tan());
         if let Some(tip) = &mut self.tip
             && self.touching
             && states.len() > m
         {
             tip.state = states[m];
             match tip.state {
-                State::DynamicPlus => match locate(&self.tets, &xt, &tip_x) {
-                    // It cut on: the point moves to the tissue now at the tip.
-                    Some(at) => {
-                        tip.tissue = at;
-                        tip.arclength = tip_a;
+                State::DynamicPlus => {
+                    let at = tip_x + bevel_offset;
+                    let strict = locate(&self.tets, &xt, &at);
+                    if strict.is_none() {
+                        self.stats.tip_fallbacks += 1;
                     }
-                    // The tip left the block through its far side.
-                    None => self.tip = None,
-                },
+                    match strict.or_else(|| locate_within(&self.tets, &xt, &at, TIP_SLACK)) {
+                        // It cut on: the point moves to the tissue now at the
+                        // tip, beside it for a bevel tip.
+                        Some(at) => {
+                            tip.tissue = at;
+                            tip.arclength = tip_a;
+                        }
+                        // The tip left the tissue (through the block's far
+                        // side, or into a gap of a badly deformed mesh).
+                        None => {
+                            self.stats.tip_lost += 1;
+                            self.tip = None;
+                        }
+                    }
+                }
                 State::DynamicMinus => self.touching = false,
                 State::Static => {}
             }
@@ -523,6 +553,8 @@ impl Model for NeedleModel {
         );
         d.insert("lcp_trials_max".into(), s.max_trials as f64);
         d.insert("lcp_unresolved_steps".into(), s.unresolved as f64);
+        d.insert("tip_fallback_steps".into(), s.tip_fallbacks as f64);
+        d.insert("tip_lost".into(), s.tip_lost as f64);
         d
     }
 }
