@@ -35,17 +35,21 @@ fn a_bevel_tip_bends_a_flexible_needle_towards_m2() {
     let (straight, _, d0) = insert(0.0);
     let (bent, m2, d1) = insert(0.25);
     let (more, _, d2) = insert(0.5);
-    // Measured at this mesh: the symmetric tip drifts 0.28 mm, equally in y
-    // and z (the same at mesh level 1: not the mesh size; the block's tets
-    // are all split along the same diagonal); psi = 0.25 and 0.5 move the
-    // tip 1.99 and 2.34 mm along m_2. The bend must stand clear of that
-    // drift, in the m_2 direction.
-    let drift = straight.norm();
-    assert!(
-        bent.dot(&m2) > 3.0 * drift,
-        "the tip moved to the m_2 side: {bent:?}, m_2 {m2:?}"
-    );
-    assert!(more.dot(&m2) > bent.dot(&m2), "a steeper bevel bends more: {more:?}");
+    // Measured: the symmetric tip drifts 0.28 mm, equally in y and z, the
+    // same at mesh level 1, and 0.50 mm with the needle through the cells
+    // rather than along a grid line: the block's tets are all split along
+    // the same diagonal, and the tip follows that anisotropy. psi = 0.25
+    // and 0.5 move the tip 1.99 and 2.34 mm along m_2 (2.20 and 1.82 mm
+    // through the cells: the size of the bend is not resolved at this mesh,
+    // so only its side is asserted). Each bevel must bend the needle along
+    // m_2 by more than 1 mm beyond the symmetric tip's drift.
+    for tip in [bent, more] {
+        let bend = (tip - straight).dot(&m2);
+        assert!(
+            bend > 1e-3,
+            "the tip moved {bend} m to the m_2 side ({tip:?}, m_2 {m2:?})"
+        );
+    }
     // Every cut found its channel end, none lost the tip (one cut of
     // psi = 0.5 needed the quarter-tet slack).
     for d in [&d0, &d1, &d2] {
