@@ -98,11 +98,30 @@ const KUHN: [[usize; 4]; 6] = [
 /// Build tets from a structured `(ni+1) x (nj+1) x (nk+1)` lattice whose node
 /// index is `node(i, j, k)`; orientation is fixed from the node positions.
 fn lattice_tets(nodes: &[Vec3], cells: [usize; 3], node: impl Fn(usize, usize, usize) -> usize) -> Vec<[usize; 4]> {
+    split_lattice(nodes, cells, false, node)
+}
+
+/// [`lattice_tets`], with every cell's split mirrored along each axis whose
+/// cell index is odd when `mirror` is set.
+fn split_lattice(
+    nodes: &[Vec3],
+    cells: [usize; 3],
+    mirror: bool,
+    node: impl Fn(usize, usize, usize) -> usize,
+) -> Vec<[usize; 4]> {
     let mut tets = Vec::with_capacity(6 * cells[0] * cells[1] * cells[2]);
     for k in 0..cells[2] {
         for j in 0..cells[1] {
             for i in 0..cells[0] {
-                let corner = |c: usize| node(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1));
+                let flip = if mirror {
+                    (i & 1) | (j & 1) << 1 | (k & 1) << 2
+                } else {
+                    0
+                };
+                let corner = |c: usize| {
+                    let c = c ^ flip;
+                    node(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1))
+                };
                 for t in KUHN {
                     let mut tet = t.map(corner);
                     let [a, b, c, d] = tet.map(|n| nodes[n]);
@@ -139,6 +158,22 @@ pub fn block(size: Vec3, cells: [usize; 3]) -> TetMesh {
     }
     let tets = lattice_tets(&nodes, c, |i, j, k| i + nx * (j + ny * k));
     TetMesh { nodes, tets }
+}
+
+/// [`block`] with each cell's six-tet split mirrored across the cell faces
+/// whose index along that axis is odd, so that the mesh is symmetric under
+/// reflection in every grid plane through a node with even indices. The
+/// plain [`block`] splits every cell along the same diagonal, and a line
+/// load along a grid line then drifts sideways along that diagonal
+/// (measured on the needle scenes). Same nodes and node numbering as
+/// [`block`]; shared faces stay conforming (a mirrored neighbour splits the
+/// shared face along the same diagonal).
+pub fn block_mirrored(size: Vec3, cells: [usize; 3]) -> TetMesh {
+    let mut m = block(size, cells);
+    let c = cells.map(|n| n.max(1));
+    let (nx, ny) = (c[0] + 1, c[1] + 1);
+    m.tets = split_lattice(&m.nodes, c, true, |i, j, k| i + nx * (j + ny * k));
+    m
 }
 
 /// Full thick-walled tube about the z axis: radii `inner..outer` (m),
@@ -371,6 +406,39 @@ mod tests {
         // Boundary: 2 triangles per cell face on each of the six sides.
         let nf = boundary_faces(&m).len();
         assert_eq!(nf, 2 * 2 * (3 * 4 + 4 * 5 + 3 * 5), "boundary faces {nf}");
+    }
+
+    #[test]
+    fn mirrored_block_is_conforming_and_mirror_symmetric() {
+        let size = Vec3::new(0.04, 0.02, 0.02);
+        let m = block_mirrored(size, [4, 2, 2]);
+        m.validate().unwrap();
+        let q = quality(&m);
+        assert_eq!(q.inverted, 0, "{q:?}");
+        let v = size.x * size.y * size.z;
+        assert!((q.volume - v).abs() < 1e-12 * v, "volume {} vs {v}", q.volume);
+        // Conforming: every interior face is shared by two tets, so the
+        // boundary holds exactly the 2 triangles per cell face of the sides.
+        let nf = boundary_faces(&m).len();
+        assert_eq!(nf, 2 * 2 * (4 * 2 + 2 * 2 + 4 * 2), "boundary faces {nf}");
+        // Reflection in the plane y = size.y / 2 (through the middle nodes,
+        // index 1) maps the tet set onto itself.
+        let key = |t: [usize; 4]| {
+            let mut k = t;
+            k.sort_unstable();
+            k
+        };
+        let set: std::collections::HashSet<[usize; 4]> = m.tets.iter().map(|t| key(*t)).collect();
+        let (nx, ny) = (5, 3);
+        let mirror_y = |n: usize| {
+            let (i, j, k) = (n % nx, (n / nx) % ny, n / (nx * ny));
+            i + nx * ((ny - 1 - j) + ny * k)
+        };
+        assert!(m.tets.iter().all(|t| set.contains(&key(t.map(mirror_y)))));
+        // The plain block is not symmetric so.
+        let plain = block(size, [4, 2, 2]);
+        let set: std::collections::HashSet<[usize; 4]> = plain.tets.iter().map(|t| key(*t)).collect();
+        assert!(!plain.tets.iter().all(|t| set.contains(&key(t.map(mirror_y)))));
     }
 
     #[test]

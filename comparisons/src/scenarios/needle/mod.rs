@@ -6,8 +6,11 @@
 //! reaches the tissue. A gel block occupies `[0, block_length] x
 //! [-w/2, w/2]^2` (`w = block_width`), held at its far face
 //! `x = block_length` unless a scene says otherwise; its mesh has
-//! `8 * 2^level x 4 * 2^level x 4 * 2^level` cells (six tets each), so a
-//! mesh node sits on the needle's axis at the entry. The model reports `Observation::hand_force` as the
+//! `8 * 2^level x 4 * 2^level x 4 * 2^level` cells (six tets each, the
+//! split mirrored cell to cell: `mesh::block_mirrored`), so a mesh node sits
+//! on the needle's axis at the entry and the mesh is mirror-symmetric about
+//! it (on the plain block a symmetric tip drifted sideways along the split
+//! diagonal). The model reports `Observation::hand_force` as the
 //! force the needle exerts on the hand: the hand pushes with its negative.
 
 mod stick_slip;
@@ -61,7 +64,7 @@ impl GelBlock {
     /// modulus (Pa), Poisson ratio and density (kg/m^3).
     fn new(scenario: &str, level: usize, length: f64, width: f64, gel: [f64; 3]) -> Result<Self, UsageError> {
         let k = 1usize << level;
-        let mut mesh = mesh::block(Vec3::new(length, width, width), [8 * k, 4 * k, 4 * k]);
+        let mut mesh = mesh::block_mirrored(Vec3::new(length, width, width), [8 * k, 4 * k, 4 * k]);
         for x in &mut mesh.nodes {
             x.y -= 0.5 * width;
             x.z -= 0.5 * width;

@@ -14,7 +14,7 @@ pub const NEEDLE_LENGTH: f64 = 0.04;
 /// friction per length (N/m), cutting force (N).
 pub fn scene(feed: &[(f64, f64)], cells: [usize; 3], f_perlen: f64, f_cut: f64) -> Scene {
     let size = Vec3::new(0.02, 0.01, 0.01);
-    let mut mesh = surgbench_core::mesh::block(size, cells);
+    let mut mesh = surgbench_core::mesh::block_mirrored(size, cells);
     for p in &mut mesh.nodes {
         p.y -= 0.005;
         p.z -= 0.005;
