@@ -173,13 +173,13 @@ impl NeedleModel {
         *self.rod.rest_arclength().last().expect("a rod has nodes")
     }
 
-    /// Friction bounds of the LCP's points ([`Self::points`]): a shaft
-    /// point holds `f_perlen (l_{i-1} + l_i) / 2` with the arclength gaps to
-    /// its neighbours (seed Eq. 9), the first all of the shaft back to the
-    /// entry and the last all of it on to the tip, so that the bounds sum to
-    /// `f_perlen d`; the tip point holds the cutting force against the tip's
-    /// advance and nothing against its retreat (and the shaft, while no
-    /// shaft point exists yet).
+    /// Friction bounds of the LCP's points ([`Self::points`]): a point
+    /// holds `f_perlen (l_{i-1} + l_i) / 2` with the arclength gaps to its
+    /// neighbours (seed Eq. 9). The tip point, while it touches the tip, is
+    /// the last of them and holds the cutting force besides against the
+    /// tip's advance; the first shaft point also holds all of the shaft back
+    /// to the entry, and without a touching tip the last one holds all of it
+    /// on to the tip, so that the friction bounds sum to `f_perlen d`.
     /// `xt`: the tissue's node positions (m).
     fn bounds(&self, xt: &[Vec3]) -> Vec<Bounds> {
         let f = self.coupling.friction_per_length;
@@ -187,6 +187,10 @@ impl NeedleModel {
         let m = a.len();
         let entry = self.entry_arclength_at(xt).unwrap_or(0.0);
         let tip = self.tip_arclength();
+        let touching = self.tip.is_some() && self.touching;
+        // The tail from the last shaft point to the tip: halved with a
+        // touching tip point, whole on the last shaft point otherwise.
+        let tail = |a_last: f64| (tip - a_last).max(0.0) * if touching { 1.0 } else { 2.0 };
         let mut out: Vec<Bounds> = (0..m)
             .map(|i| {
                 let prev = if i > 0 {
@@ -194,11 +198,7 @@ impl NeedleModel {
                 } else {
                     2.0 * (a[0] - entry).max(0.0)
                 };
-                let next = if i + 1 < m {
-                    a[i + 1] - a[i]
-                } else {
-                    2.0 * (tip - a[i]).max(0.0)
-                };
+                let next = if i + 1 < m { a[i + 1] - a[i] } else { tail(a[i]) };
                 let b = f * 0.5 * (prev + next);
                 Bounds {
                     forward: b,
@@ -206,8 +206,8 @@ impl NeedleModel {
                 }
             })
             .collect();
-        if self.tip.is_some() && self.touching {
-            let shaft = if m == 0 { f * (tip - entry).max(0.0) } else { 0.0 };
+        if touching {
+            let shaft = f * (tip - a.last().copied().unwrap_or(entry)).max(0.0) * if m == 0 { 1.0 } else { 0.5 };
             out.push(Bounds {
                 forward: self.coupling.cutting_force + shaft,
                 backward: shaft,

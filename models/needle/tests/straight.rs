@@ -87,12 +87,11 @@ fn base_force_follows_the_closed_form_while_sliding() {
     println!(
         "sliding steps {sliding_in} in, {sliding_out} out, worst insertion error {worst_in:.3e}, retraction {worst_out:.3e}"
     );
-    // Most of the insertion slides (measured: 842 of 1,300 steps; the
+    // Most of the insertion slides (measured: 854 of 1,300 steps; the
     // others are stick episodes of the block's axial ringing).
     assert!(sliding_in > 500, "{sliding_in} sliding steps");
-    // Issue 17's bound; measured 1.00 % (0.53 % on the plain block mesh
-    // before the mirrored one; the needle's axial inertia and the one-step
-    // linearization of its clamp reaction).
+    // Issue 17's bound; measured 0.26 % (the needle's axial inertia and the
+    // one-step linearization of its clamp reaction).
     assert!(worst_in < 0.02, "insertion error {worst_in}");
     // Retracting 5 mm, some point near the entry still sticks at every step
     // (measured: no step with all points sliding back), so the closed form
