@@ -1,5 +1,7 @@
-//! Helpers shared by the tissue-scene tests.
+//! Helpers shared by the scenario tests (tissue here, vessel in [`vessel`]).
 #![allow(dead_code)]
+
+pub mod vessel;
 
 use surgbench_comparisons::scenario::ScenarioRun;
 use surgbench_core::{Fidelity, Observation, TissueBody, TissueObs, Vec3};
