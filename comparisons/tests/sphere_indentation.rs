@@ -13,8 +13,7 @@ use surgbench_comparisons::scenarios::tissue::{self, SPHERE_DT, SPHERE_INDENTATI
 use surgbench_core::{Capability, Fidelity, ModelFactory, Observation, TissueObs, Vec3, mesh};
 
 fn params(overrides: &[(&str, f64)]) -> Params {
-    let o: Vec<(String, f64)> = overrides.iter().map(|(k, v)| (k.to_string(), *v)).collect();
-    Params::resolve("sphere-indentation", SPHERE_INDENTATION.params(), &o).unwrap()
+    common::params(&SPHERE_INDENTATION, overrides)
 }
 
 fn level(l: usize) -> Fidelity {

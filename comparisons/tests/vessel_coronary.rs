@@ -2,6 +2,7 @@
 //! and against the moving wall of the beating coronary.
 
 mod common;
+use common::params;
 use common::vessel::*;
 
 use std::f64::consts::PI;

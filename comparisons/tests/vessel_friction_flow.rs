@@ -2,6 +2,7 @@
 //! of the flow drift with a kinematic wire.
 
 mod common;
+use common::params;
 use common::vessel::*;
 
 use std::f64::consts::PI;

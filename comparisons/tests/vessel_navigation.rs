@@ -3,6 +3,7 @@
 //! known.
 
 mod common;
+use common::params;
 use common::vessel::*;
 
 use std::f64::consts::PI;

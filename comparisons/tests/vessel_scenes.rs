@@ -2,6 +2,7 @@
 //! wire inside the lumen) and bad parameters.
 
 mod common;
+use common::params;
 use common::vessel::*;
 
 use surgbench_comparisons::scenarios::vessel::{self, WIRE_RADIUS};

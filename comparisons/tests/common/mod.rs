@@ -3,7 +3,8 @@
 
 pub mod vessel;
 
-use surgbench_comparisons::scenario::ScenarioRun;
+use surgbench_comparisons::datasets::datasets_dir;
+use surgbench_comparisons::scenario::{Params, Scenario, ScenarioRun};
 use surgbench_core::{Fidelity, Observation, TissueBody, TissueObs, Vec3};
 
 /// The fidelity that only picks mesh level `l`.
@@ -36,4 +37,24 @@ pub fn observe(run: &ScenarioRun, t: f64, hand_force: Vec3, u: impl Fn(&Vec3) ->
         hand_force,
         ..Default::default()
     }
+}
+
+/// The parameters of scenario `s` with `overrides` (by name) over its defaults.
+pub fn params(s: &dyn Scenario, overrides: &[(&str, f64)]) -> Params {
+    let o: Vec<(String, f64)> = overrides.iter().map(|(k, v)| (k.to_string(), *v)).collect();
+    Params::resolve(s.id(), s.params(), &o).unwrap()
+}
+
+/// A copy of the committed reference `reference/<dir>` (its `files`) in a
+/// temporary datasets folder, with `edit(file name, text)` applied to each.
+pub fn edited_reference(dir: &str, files: &[&str], edit: impl Fn(&str, String) -> String) -> tempfile::TempDir {
+    let tmp = tempfile::tempdir().unwrap();
+    let src = datasets_dir().join("reference").join(dir);
+    let dst = tmp.path().join("reference").join(dir);
+    std::fs::create_dir_all(&dst).unwrap();
+    for name in files {
+        let text = std::fs::read_to_string(src.join(name)).unwrap();
+        std::fs::write(dst.join(name), edit(name, text)).unwrap();
+    }
+    tmp
 }

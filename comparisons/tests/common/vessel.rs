@@ -103,11 +103,6 @@ pub fn scenario(id: &str) -> &'static dyn Scenario {
     vessel::all().into_iter().find(|s| s.id() == id).unwrap()
 }
 
-pub fn params(s: &dyn Scenario, overrides: &[(&str, f64)]) -> Params {
-    let o: Vec<(String, f64)> = overrides.iter().map(|(k, v)| (k.to_string(), *v)).collect();
-    Params::resolve(s.id(), s.params(), &o).unwrap()
-}
-
 pub fn run(s: &dyn Scenario, p: &Params, f: &TestFactory) -> RunSummary {
     let r = s.instantiate(p).unwrap();
     run_single(s, p, &r, f, &Fidelity::default(), &RunOptions::default()).unwrap()
