@@ -189,12 +189,7 @@ impl DerRod {
     /// largest final update and `converged` only if every substep converged;
     /// [`DerRod::last_substeps`] tells how many substeps were taken.
     pub fn step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
-        if !(dt > 0.0 && dt.is_finite()) {
-            return Err(SimError::SolverFailed {
-                t: self.time,
-                reason: format!("time step must be > 0 s, got {dt}"),
-            });
-        }
+        SimError::check_dt(self.time, dt)?;
         let c0 = self.prev_cmd;
         let mut acc = StepStats {
             iterations: 0,
