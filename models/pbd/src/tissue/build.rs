@@ -191,35 +191,22 @@ impl TetNetwork {
     /// The network in the storage order of the two-level colouring
     /// ([`crate::color`]), with the partition that orders it.
     fn coloured(self, nn: usize) -> (Partition, Self) {
-        let Self {
-            tets,
-            mass,
-            tet_rest,
-            edges,
-            edge_k,
-            tet_edges,
-        } = self;
-        let part = partition(nn, &edges, &tets);
-        let mut edge_new = vec![0u32; edges.len()];
+        let part = partition(nn, &self.edges, &self.tets);
+        let mut edge_new = vec![0u32; self.edges.len()];
         for (new, &old) in part.edge_perm.iter().enumerate() {
             edge_new[old as usize] = new as u32;
         }
-        let edges: Vec<[u32; 2]> = part.edge_perm.iter().map(|&o| edges[o as usize]).collect();
-        let edge_k: Vec<f64> = part.edge_perm.iter().map(|&o| edge_k[o as usize]).collect();
-        let tets: Vec<[u32; 4]> = part.tet_perm.iter().map(|&o| tets[o as usize]).collect();
-        let tet_rest: Vec<f64> = part.tet_perm.iter().map(|&o| tet_rest[o as usize]).collect();
-        let tet_edges: Vec<[u32; 6]> = part
-            .tet_perm
-            .iter()
-            .map(|&o| tet_edges[o as usize].map(|e| edge_new[e as usize]))
-            .collect();
         let net = Self {
-            tets,
-            mass,
-            tet_rest,
-            edges,
-            edge_k,
-            tet_edges,
+            edges: part.edge_perm.iter().map(|&o| self.edges[o as usize]).collect(),
+            edge_k: part.edge_perm.iter().map(|&o| self.edge_k[o as usize]).collect(),
+            tets: part.tet_perm.iter().map(|&o| self.tets[o as usize]).collect(),
+            tet_rest: part.tet_perm.iter().map(|&o| self.tet_rest[o as usize]).collect(),
+            tet_edges: part
+                .tet_perm
+                .iter()
+                .map(|&o| self.tet_edges[o as usize].map(|e| edge_new[e as usize]))
+                .collect(),
+            mass: self.mass,
         };
         (part, net)
     }
