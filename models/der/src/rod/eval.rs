@@ -125,15 +125,7 @@ impl DerRod {
                 self.grad[4 * (j + 1) + c] += g[c];
                 self.grad[4 * j + c] -= g[c];
             }
-            let (a, b) = (4 * j, 4 * (j + 1));
-            for r in 0..3 {
-                for c in 0..3 {
-                    let v = h[(r, c)];
-                    self.band_add(b + r, b + c, v);
-                    self.band_add(a + r, a + c, v);
-                    self.band_add(b + r, a + c, -v);
-                }
-            }
+            self.add_edge_block(j, &h);
         }
     }
 
@@ -293,15 +285,22 @@ impl DerRod {
             }
             let t = (x1 - x0) / l;
             let h = (Mat3::identity() - t * t.transpose()) * (-self.ea[j] * strain / l);
-            let (a, b) = (4 * j, 4 * (j + 1));
-            for r in 0..3 {
-                for c in 0..3 {
-                    // `band_add` keeps the lower triangle only.
-                    let v = h[(r, c)];
-                    self.band_add(b + r, b + c, v);
-                    self.band_add(a + r, a + c, v);
-                    self.band_add(b + r, a + c, -v);
-                }
+            self.add_edge_block(j, &h);
+        }
+    }
+
+    /// Add the Hessian block `h` of edge `j` (the same 3x3 block on both its
+    /// end nodes, its negative between them) to the band.
+    #[inline]
+    fn add_edge_block(&mut self, j: usize, h: &Mat3) {
+        let (a, b) = (4 * j, 4 * (j + 1));
+        for r in 0..3 {
+            for c in 0..3 {
+                // `band_add` keeps the lower triangle only.
+                let v = h[(r, c)];
+                self.band_add(b + r, b + c, v);
+                self.band_add(a + r, a + c, v);
+                self.band_add(b + r, a + c, -v);
             }
         }
     }
