@@ -25,6 +25,12 @@ pub fn body(run: &ScenarioRun) -> &TissueBody {
 pub fn observe(run: &ScenarioRun, t: f64, hand_force: Vec3, u: impl Fn(&Vec3) -> Vec3) -> Observation {
     let rest = body(run).mesh.nodes.clone();
     let nodes = rest.iter().map(|x| x + u(x)).collect();
+    tissue_observation(t, rest, nodes, hand_force)
+}
+
+/// An observation at time `t` of one tissue at `nodes` (rest positions
+/// `rest`), at rest, with the given hand force.
+pub fn tissue_observation(t: f64, rest: Vec<Vec3>, nodes: Vec<Vec3>, hand_force: Vec3) -> Observation {
     Observation {
         time: t,
         tissues: vec![TissueObs {
