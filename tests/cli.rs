@@ -51,96 +51,26 @@ fn bad_input_is_a_clear_usage_error_and_writes_nothing() {
         &["--scenario", "nope", "--model", "faulty-panic"],
         "unknown scenario `nope`",
     );
+    let gravity = ["--scenario", "cantilever-gravity", "--model", "faulty-panic"];
     case(
         &["--scenario", "cantilever-gravity", "--model", "nope"],
         "unknown model `nope`",
     );
     case(
-        &[
-            "--scenario",
-            "cantilever-gravity",
-            "--model",
-            "faulty-panic",
-            "--param",
-            "lenght=1",
-        ],
+        &[&gravity[..], &["--param", "lenght=1"]].concat(),
         "no parameter `lenght`",
     );
+    case(&[&gravity[..], &["--param", "length=-0.1"]].concat(), "`length`");
     case(
-        &[
-            "--scenario",
-            "cantilever-gravity",
-            "--model",
-            "faulty-panic",
-            "--param",
-            "length=-0.1",
-        ],
-        "`length`",
-    );
-    case(
-        &[
-            "--scenario",
-            "cantilever-gravity",
-            "--model",
-            "faulty-panic",
-            "--param",
-            "poisson_ratio=0.5",
-        ],
+        &[&gravity[..], &["--param", "poisson_ratio=0.5"]].concat(),
         "`poisson_ratio`",
     );
+    case(&[&gravity[..], &["--param", "length=abc"]].concat(), "not a number");
+    case(&[&gravity[..], &["--fidelity", "dt=0"]].concat(), "`dt`");
+    case(&[&gravity[..], &["--fidelity", "dt=-1e-3"]].concat(), "`dt`");
+    case(&[&gravity[..], &["--fidelity", "segments=2.5"]].concat(), "`segments`");
     case(
-        &[
-            "--scenario",
-            "cantilever-gravity",
-            "--model",
-            "faulty-panic",
-            "--param",
-            "length=abc",
-        ],
-        "not a number",
-    );
-    case(
-        &[
-            "--scenario",
-            "cantilever-gravity",
-            "--model",
-            "faulty-panic",
-            "--fidelity",
-            "dt=0",
-        ],
-        "`dt`",
-    );
-    case(
-        &[
-            "--scenario",
-            "cantilever-gravity",
-            "--model",
-            "faulty-panic",
-            "--fidelity",
-            "dt=-1e-3",
-        ],
-        "`dt`",
-    );
-    case(
-        &[
-            "--scenario",
-            "cantilever-gravity",
-            "--model",
-            "faulty-panic",
-            "--fidelity",
-            "segments=2.5",
-        ],
-        "`segments`",
-    );
-    case(
-        &[
-            "--scenario",
-            "cantilever-gravity",
-            "--model",
-            "faulty-panic",
-            "--fidelity",
-            "warp=1",
-        ],
+        &[&gravity[..], &["--fidelity", "warp=1"]].concat(),
         "unknown fidelity key `warp`",
     );
     // A choice is a name: an unknown one, or the numeric code it once had,

@@ -177,6 +177,29 @@ pub fn run_haptic_loop(
     rate_hz: f64,
     duration_s: f64,
 ) -> Result<HapticReport, UsageError> {
+    let (ticks, substeps) = loop_plan(model.dt(), rate_hz, duration_s)?;
+    std::thread::scope(|scope| {
+        let handle = std::thread::Builder::new()
+            .name("haptic-loop".into())
+            .spawn_scoped(scope, move || {
+                let rep = HapticReport {
+                    rate_hz,
+                    duration_s,
+                    substeps,
+                    ..Default::default()
+                };
+                tick_loop(model, device, rep, ticks)
+            })
+            .map_err(|e| UsageError(format!("cannot start the haptic thread: {e}")))?;
+        handle
+            .join()
+            .map_err(|_| UsageError("the haptic thread panicked (a model panicked inside step or observe)".into()))
+    })
+}
+
+/// The loop's ticks and model steps per tick for a model of time step `mdt`
+/// (s); a rate, duration or step count out of range is a usage error.
+fn loop_plan(mdt: f64, rate_hz: f64, duration_s: f64) -> Result<(usize, usize), UsageError> {
     if !(rate_hz > 0.0 && rate_hz.is_finite() && rate_hz <= 1e6) {
         return Err(UsageError(format!("haptic rate must be in (0, 1e6] Hz, got {rate_hz}")));
     }
@@ -185,7 +208,6 @@ pub fn run_haptic_loop(
     }
     let ticks = (duration_s * rate_hz).round().max(1.0);
     let period = 1.0 / rate_hz;
-    let mdt = model.dt();
     let substeps = if mdt > 0.0 && mdt.is_finite() {
         (period / mdt * (1.0 - 1e-12)).ceil().max(1.0)
     } else {
@@ -203,57 +225,52 @@ pub fn run_haptic_loop(
             short(substeps)
         )));
     }
-    let (ticks, substeps) = (ticks as usize, substeps as usize);
+    Ok((ticks as usize, substeps as usize))
+}
+
+/// The body of the haptic thread: `ticks` ticks of `rep.substeps` model
+/// steps each at `rep.rate_hz`, filling `rep`.
+fn tick_loop(
+    mut model: Box<dyn Model>,
+    device: &mut dyn HapticDevice,
+    mut rep: HapticReport,
+    ticks: usize,
+) -> HapticReport {
+    let period = 1.0 / rep.rate_hz;
+    let substeps = rep.substeps;
     let dt = period / substeps as f64;
-    std::thread::scope(|scope| {
-        let handle = std::thread::Builder::new()
-            .name("haptic-loop".into())
-            .spawn_scoped(scope, move || {
-                let mut model = model;
-                let mut rep = HapticReport {
-                    rate_hz,
-                    duration_s,
-                    substeps,
-                    ..Default::default()
-                };
-                // Grown as the loop goes, like a run's records.
-                let (mut latency, mut lateness) = (Vec::new(), Vec::new());
-                let start = Instant::now();
-                'ticks: for k in 0..ticks {
-                    let scheduled = start + Duration::from_secs_f64(k as f64 * period);
-                    wait_until(scheduled);
-                    lateness.push((Instant::now() - scheduled).as_secs_f64());
-                    let t = (k + 1) as f64 * period;
-                    let cmd = device.command(t);
-                    for _ in 0..substeps {
-                        if let Err(e) = model.step(dt, &cmd) {
-                            rep.stopped = Some(e.to_string());
-                            break 'ticks;
-                        }
-                    }
-                    let obs = model.observe();
-                    let fb = Feedback {
-                        t,
-                        force: obs.hand_force,
-                        torque: obs.hand_torque,
-                    };
-                    device.render(&fb);
-                    let done = Instant::now();
-                    latency.push((done - scheduled).as_secs_f64());
-                    if done > scheduled + Duration::from_secs_f64(period) {
-                        rep.deadline_misses += 1;
-                    }
-                    rep.commands.push(cmd);
-                    rep.feedback.push(fb);
-                    rep.ticks = k + 1;
-                }
-                rep.wall_s = start.elapsed().as_secs_f64();
-                rep.summarize(latency, &lateness);
-                rep
-            })
-            .map_err(|e| UsageError(format!("cannot start the haptic thread: {e}")))?;
-        handle
-            .join()
-            .map_err(|_| UsageError("the haptic thread panicked (a model panicked inside step or observe)".into()))
-    })
+    // Grown as the loop goes, like a run's records.
+    let (mut latency, mut lateness) = (Vec::new(), Vec::new());
+    let start = Instant::now();
+    'ticks: for k in 0..ticks {
+        let scheduled = start + Duration::from_secs_f64(k as f64 * period);
+        wait_until(scheduled);
+        lateness.push((Instant::now() - scheduled).as_secs_f64());
+        let t = (k + 1) as f64 * period;
+        let cmd = device.command(t);
+        for _ in 0..substeps {
+            if let Err(e) = model.step(dt, &cmd) {
+                rep.stopped = Some(e.to_string());
+                break 'ticks;
+            }
+        }
+        let obs = model.observe();
+        let fb = Feedback {
+            t,
+            force: obs.hand_force,
+            torque: obs.hand_torque,
+        };
+        device.render(&fb);
+        let done = Instant::now();
+        latency.push((done - scheduled).as_secs_f64());
+        if done > scheduled + Duration::from_secs_f64(period) {
+            rep.deadline_misses += 1;
+        }
+        rep.commands.push(cmd);
+        rep.feedback.push(fb);
+        rep.ticks = k + 1;
+    }
+    rep.wall_s = start.elapsed().as_secs_f64();
+    rep.summarize(latency, &lateness);
+    rep
 }

@@ -4,17 +4,16 @@
 //! and the `fem` model converging to Hertz with the mesh level.
 
 mod common;
-use common::body;
+use common::{body, tissue_observation};
 use surgbench_comparisons::references::{hertz_contact_radius, hertz_force, sphere_force_exact};
 use surgbench_comparisons::registry;
 use surgbench_comparisons::runner::{RunOptions, run_single};
 use surgbench_comparisons::scenario::{Params, Scenario};
 use surgbench_comparisons::scenarios::tissue::{self, SPHERE_DT, SPHERE_INDENTATION, sphere_block_mesh};
-use surgbench_core::{Capability, Fidelity, ModelFactory, Observation, TissueObs, Vec3, mesh};
+use surgbench_core::{Capability, Fidelity, ModelFactory, Vec3, mesh};
 
 fn params(overrides: &[(&str, f64)]) -> Params {
-    let o: Vec<(String, f64)> = overrides.iter().map(|(k, v)| (k.to_string(), *v)).collect();
-    Params::resolve("sphere-indentation", SPHERE_INDENTATION.params(), &o).unwrap()
+    common::params(&SPHERE_INDENTATION, overrides)
 }
 
 fn level(l: usize) -> Fidelity {
@@ -188,18 +187,7 @@ fn score_reads_the_quarter_force_and_penetration() {
         let mut nodes: Vec<Vec3> = rest.iter().map(|p| p - Vec3::new(0.0, 0.0, 1e-5)).collect();
         let o = rest.iter().position(|p| *p == Vec3::zeros()).unwrap();
         nodes[o].z += dip;
-        Observation {
-            time: end,
-            tissues: vec![TissueObs {
-                velocities: vec![Vec3::zeros(); rest.len()],
-                rest,
-                nodes,
-                volume_error: 0.0,
-                inverted: 0,
-            }],
-            hand_force: Vec3::new(0.0, 0.0, fz),
-            ..Default::default()
-        }
+        tissue_observation(end, rest, nodes, Vec3::new(0.0, 0.0, fz))
     };
     let m = run.scorer().score(&obs(f_ref / 4.0, 0.0));
     assert!(m["force_error_rel"] <= 1e-12, "{m:?}");

@@ -6,7 +6,7 @@
 //! registered `pbd-tissue` and `fem` models through the runner.
 
 mod common;
-use common::{body, level};
+use common::{body, level, params, tissue_observation};
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
 use surgbench_comparisons::comparison::Comparison;
@@ -22,27 +22,13 @@ use surgbench_comparisons::scenarios::tissue::{
 use surgbench_core::io::truth_cube;
 use surgbench_core::mesh;
 use surgbench_core::rng::SplitMix64;
-use surgbench_core::{Capability, Family, Fidelity, Mat3, Observation, TetMesh, TissueObs, Vec3};
-
-fn params(sc: &dyn Scenario, overrides: &[(&str, f64)]) -> Params {
-    let o: Vec<(String, f64)> = overrides.iter().map(|(k, v)| (k.to_string(), *v)).collect();
-    Params::resolve(sc.id(), sc.params(), &o).unwrap()
-}
+use surgbench_core::{Capability, Family, Fidelity, Mat3, Observation, TetMesh, Vec3};
 
 /// An observation of the scene's tissue with nodes at `f(rest)`.
 fn observe(run: &ScenarioRun, f: impl Fn(&Vec3) -> Vec3) -> Observation {
     let rest = body(run).mesh.nodes.clone();
     let nodes: Vec<Vec3> = rest.iter().map(&f).collect();
-    Observation {
-        tissues: vec![TissueObs {
-            velocities: vec![Vec3::zeros(); rest.len()],
-            rest,
-            nodes,
-            volume_error: 0.0,
-            inverted: 0,
-        }],
-        ..Default::default()
-    }
+    tissue_observation(0.0, rest, nodes, Vec3::zeros())
 }
 
 #[test]

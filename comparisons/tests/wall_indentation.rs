@@ -4,7 +4,7 @@
 //! the `fem` model converging towards the reference with the mesh level.
 
 mod common;
-use common::{body, level, observe};
+use common::{body, edited_reference, level, observe};
 use std::path::Path;
 use surgbench_comparisons::datasets::datasets_dir;
 use surgbench_comparisons::references::WallReference;
@@ -15,8 +15,7 @@ use surgbench_comparisons::scenarios::tissue::{self, WALL_INDENTATION};
 use surgbench_core::Vec3;
 
 fn params(overrides: &[(&str, f64)]) -> Params {
-    let o: Vec<(String, f64)> = overrides.iter().map(|(k, v)| (k.to_string(), *v)).collect();
-    Params::resolve("wall-indentation", WALL_INDENTATION.params(), &o).unwrap()
+    common::params(&WALL_INDENTATION, overrides)
 }
 
 fn reference() -> WallReference {
@@ -35,14 +34,8 @@ fn provenance(key: &str) -> f64 {
 
 /// The load error after `edit(file name, text)` on a copy of the reference.
 fn load_err_after(edit: impl Fn(&str, String) -> String) -> String {
-    let tmp = tempfile::tempdir().unwrap();
-    let src = datasets_dir().join("reference/wall-indentation");
-    let dst = tmp.path().join("reference/wall-indentation");
-    std::fs::create_dir_all(&dst).unwrap();
-    for name in ["meta.toml", "wall-indentation.csv", "surface-profile.csv"] {
-        let text = std::fs::read_to_string(src.join(name)).unwrap();
-        std::fs::write(dst.join(name), edit(name, text)).unwrap();
-    }
+    let files = ["meta.toml", "wall-indentation.csv", "surface-profile.csv"];
+    let tmp = edited_reference("wall-indentation", &files, edit);
     match WallReference::load(tmp.path()) {
         Ok(_) => String::new(),
         Err(e) => e.0,

@@ -5,7 +5,7 @@
 
 use std::f64::consts::PI;
 mod common;
-use common::{body, level, observe};
+use common::{body, edited_reference, level, observe};
 use std::path::Path;
 use surgbench_comparisons::datasets::datasets_dir;
 use surgbench_comparisons::references::PunchReference;
@@ -16,8 +16,7 @@ use surgbench_comparisons::scenarios::tissue::{self, WALL_PUNCH};
 use surgbench_core::Vec3;
 
 fn params(overrides: &[(&str, f64)]) -> Params {
-    let o: Vec<(String, f64)> = overrides.iter().map(|(k, v)| (k.to_string(), *v)).collect();
-    Params::resolve("wall-punch", WALL_PUNCH.params(), &o).unwrap()
+    common::params(&WALL_PUNCH, overrides)
 }
 
 fn reference() -> PunchReference {
@@ -27,15 +26,11 @@ fn reference() -> PunchReference {
 /// A copy of the committed reference under `<tmp>/reference/wall-punch`
 /// with `edit(file name, text)` applied to each file.
 fn edited_copy(edit: impl Fn(&str, String) -> String) -> tempfile::TempDir {
-    let tmp = tempfile::tempdir().unwrap();
-    let src = datasets_dir().join("reference/wall-punch");
-    let dst = tmp.path().join("reference/wall-punch");
-    std::fs::create_dir_all(&dst).unwrap();
-    for name in ["meta.toml", "wall-punch.csv", "surface-profile.csv"] {
-        let text = std::fs::read_to_string(src.join(name)).unwrap();
-        std::fs::write(dst.join(name), edit(name, text)).unwrap();
-    }
-    tmp
+    edited_reference(
+        "wall-punch",
+        &["meta.toml", "wall-punch.csv", "surface-profile.csv"],
+        edit,
+    )
 }
 
 fn load_err(dir: &Path) -> String {

@@ -270,14 +270,8 @@ pub fn write_results_csv(path: &Path, rows: &[ResultRow]) -> Result<(), ReportEr
     w.flush().map_err(|e| ReportError::io(path, e))
 }
 
-/// Reads a `results.csv` written by [`write_results_csv`] (or by hand).
-///
-/// Columns are found by name, so their order does not matter; every fixed
-/// column must be present, and any other column is a metric (an empty cell
-/// means the metric is absent for that row). A malformed file (missing fixed
-/// column, duplicate column, non-numeric value in a numeric column, ragged
-/// row) gives a [`ReportError::Parse`] naming file, line and column.
-pub fn read_results_csv(path: &Path) -> Result<Vec<ResultRow>, ReportError> {
+/// A flexible CSV reader on `path` and its header names, trimmed.
+fn open_csv(path: &Path) -> Result<(csv::Reader<std::fs::File>, Vec<String>), ReportError> {
     let mut rd = csv::ReaderBuilder::new()
         .flexible(true)
         .from_path(path)
@@ -288,6 +282,18 @@ pub fn read_results_csv(path: &Path) -> Result<Vec<ResultRow>, ReportError> {
         .iter()
         .map(|h| h.trim().to_string())
         .collect();
+    Ok((rd, header))
+}
+
+/// Reads a `results.csv` written by [`write_results_csv`] (or by hand).
+///
+/// Columns are found by name, so their order does not matter; every fixed
+/// column must be present, and any other column is a metric (an empty cell
+/// means the metric is absent for that row). A malformed file (missing fixed
+/// column, duplicate column, non-numeric value in a numeric column, ragged
+/// row) gives a [`ReportError::Parse`] naming file, line and column.
+pub fn read_results_csv(path: &Path) -> Result<Vec<ResultRow>, ReportError> {
+    let (mut rd, header) = open_csv(path)?;
     let mut seen = BTreeSet::new();
     for h in &header {
         if !seen.insert(h.as_str()) {
@@ -432,16 +438,7 @@ impl Series {
 /// row, other known columns may be absent or empty (read as `NaN`), unknown
 /// columns are ignored. Errors name file, line and column.
 pub fn read_series(path: &Path) -> Result<Series, ReportError> {
-    let mut rd = csv::ReaderBuilder::new()
-        .flexible(true)
-        .from_path(path)
-        .map_err(|e| ReportError::csv(path, e))?;
-    let header: Vec<String> = rd
-        .headers()
-        .map_err(|e| ReportError::csv(path, e))?
-        .iter()
-        .map(|h| h.trim().to_string())
-        .collect();
+    let (mut rd, header) = open_csv(path)?;
     let pos: Vec<Option<usize>> = SERIES_COLUMNS
         .iter()
         .map(|c| header.iter().position(|h| h == c))

@@ -1,7 +1,10 @@
-//! Helpers shared by the tissue-scene tests.
+//! Helpers shared by the scenario tests (tissue here, vessel in [`vessel`]).
 #![allow(dead_code)]
 
-use surgbench_comparisons::scenario::ScenarioRun;
+pub mod vessel;
+
+use surgbench_comparisons::datasets::datasets_dir;
+use surgbench_comparisons::scenario::{Params, Scenario, ScenarioRun};
 use surgbench_core::{Fidelity, Observation, TissueBody, TissueObs, Vec3};
 
 /// The fidelity that only picks mesh level `l`.
@@ -22,6 +25,12 @@ pub fn body(run: &ScenarioRun) -> &TissueBody {
 pub fn observe(run: &ScenarioRun, t: f64, hand_force: Vec3, u: impl Fn(&Vec3) -> Vec3) -> Observation {
     let rest = body(run).mesh.nodes.clone();
     let nodes = rest.iter().map(|x| x + u(x)).collect();
+    tissue_observation(t, rest, nodes, hand_force)
+}
+
+/// An observation at time `t` of one tissue at `nodes` (rest positions
+/// `rest`), at rest, with the given hand force.
+pub fn tissue_observation(t: f64, rest: Vec<Vec3>, nodes: Vec<Vec3>, hand_force: Vec3) -> Observation {
     Observation {
         time: t,
         tissues: vec![TissueObs {
@@ -34,4 +43,24 @@ pub fn observe(run: &ScenarioRun, t: f64, hand_force: Vec3, u: impl Fn(&Vec3) ->
         hand_force,
         ..Default::default()
     }
+}
+
+/// The parameters of scenario `s` with `overrides` (by name) over its defaults.
+pub fn params(s: &dyn Scenario, overrides: &[(&str, f64)]) -> Params {
+    let o: Vec<(String, f64)> = overrides.iter().map(|(k, v)| (k.to_string(), *v)).collect();
+    Params::resolve(s.id(), s.params(), &o).unwrap()
+}
+
+/// A copy of the committed reference `reference/<dir>` (its `files`) in a
+/// temporary datasets folder, with `edit(file name, text)` applied to each.
+pub fn edited_reference(dir: &str, files: &[&str], edit: impl Fn(&str, String) -> String) -> tempfile::TempDir {
+    let tmp = tempfile::tempdir().unwrap();
+    let src = datasets_dir().join("reference").join(dir);
+    let dst = tmp.path().join("reference").join(dir);
+    std::fs::create_dir_all(&dst).unwrap();
+    for name in files {
+        let text = std::fs::read_to_string(src.join(name)).unwrap();
+        std::fs::write(dst.join(name), edit(name, text)).unwrap();
+    }
+    tmp
 }

@@ -54,7 +54,7 @@
 //!   removes a whole step's motion, so with the default `k` it gives
 //!   forces of kN: the paper's formula has no physical scale.
 //!
-//! Measured (tests in `tests/chainmail.rs`): settled gravity sag over
+//! Measured (tests in `tests/rules.rs`): settled gravity sag over
 //! Euler–Bernoulli is 1.000 at the calibration fidelity (segments 20,
 //! dt 0.01 s, 10 sweeps), 0.138 at 40 segments, 0.045 at dt 1 ms, 0.72 at
 //! 40 sweeps; a rigid motion of a scene changes the world-axis answer by

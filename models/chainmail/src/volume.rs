@@ -128,31 +128,22 @@ pub struct VesselLattice {
     time: f64,
 }
 
-const FACES: [[i32; 3]; 6] = [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]];
+/// The lattice cells flooded from the clamp: cell index, kind and rest
+/// position of every element, in flood order.
+struct Flood {
+    cells: CellMap,
+    ijk: Vec<[i32; 3]>,
+    kind: Vec<Kind>,
+    rest: Vec<Vec3>,
+}
 
-impl VesselLattice {
-    /// Sample the lumen of `rest_sdf` around the clamp pose `clamp` (the
-    /// flood starts at the clamp, which must lie in the lumen).
-    pub fn new(
-        rest_sdf: Arc<dyn Sdf>,
-        motion: Arc<dyn VesselMotion>,
-        clamp: &Iso3,
-        cfg: &LatticeConfig,
-    ) -> Result<Self, String> {
+impl Flood {
+    /// Flood the lumen of `rest_sdf` breadth-first from the cell at `origin`
+    /// (lattice axes `axes`, spacing and reach from `cfg`), out to the
+    /// driven layer beyond the wall.
+    fn new(rest_sdf: &dyn Sdf, origin: Vec3, axes: Mat3, cfg: &LatticeConfig) -> Result<Self, String> {
         let h = cfg.spacing;
-        if !(h > 0.0 && h.is_finite()) {
-            return Err(format!("vessel_spacing must be > 0 m, got {h}"));
-        }
-        if !(cfg.reach > 0.0 && cfg.reach.is_finite()) {
-            return Err(format!("lattice reach must be > 0 m, got {}", cfg.reach));
-        }
-        cfg.links.validate()?;
-        let origin = clamp.translation.vector;
-        let axes = clamp.rotation.to_rotation_matrix().into_inner();
         let at = |k: [i32; 3]| origin + axes * Vec3::new(k[0] as f64, k[1] as f64, k[2] as f64) * h;
-        if !(rest_sdf.distance(&origin) < 0.0) {
-            return Err("the clamp is not inside the vessel lumen: no lattice to flood".into());
-        }
         let mut cells = CellMap::default();
         let (mut ijk, mut kind, mut rest) = (Vec::new(), Vec::new(), Vec::new());
         let mut queue = VecDeque::from([[0i32; 3]]);
@@ -199,21 +190,78 @@ impl VesselLattice {
                 }
             }
         }
-        let ne = ijk.len();
-        let (mut ring_start, mut ring) = (vec![0], Vec::new());
-        for e in 0..ne {
-            if kind[e] != Kind::Blood {
-                for f in FACES {
-                    let k = ijk[e];
-                    if let Some(&j) = cells.get(&[k[0] + f[0], k[1] + f[1], k[2] + f[2]])
-                        && kind[j] != Kind::Blood
-                    {
-                        ring.push(j);
-                    }
+        Ok(Self { cells, ijk, kind, rest })
+    }
+}
+
+/// The face neighbours among driven and wall elements, compressed: element
+/// `e`'s are `ring[ring_start[e]..ring_start[e + 1]]`.
+fn rings(cells: &CellMap, ijk: &[[i32; 3]], kind: &[Kind]) -> (Vec<usize>, Vec<usize>) {
+    let (mut ring_start, mut ring) = (vec![0], Vec::new());
+    for e in 0..ijk.len() {
+        if kind[e] != Kind::Blood {
+            for f in FACES {
+                let k = ijk[e];
+                if let Some(&j) = cells.get(&[k[0] + f[0], k[1] + f[1], k[2] + f[2]])
+                    && kind[j] != Kind::Blood
+                {
+                    ring.push(j);
                 }
             }
-            ring_start.push(ring.len());
         }
+        ring_start.push(ring.len());
+    }
+    (ring_start, ring)
+}
+
+/// `(blood element, sponsor)` breadth-first from the wall layer inwards:
+/// each blood element's sponsor is the neighbour that reached it first.
+fn blood_sponsors(cells: &CellMap, ijk: &[[i32; 3]], kind: &[Kind]) -> Vec<(usize, usize)> {
+    let mut blood = Vec::new();
+    let mut reached: Vec<bool> = kind.iter().map(|&k| k != Kind::Blood).collect();
+    let mut q: VecDeque<usize> = (0..ijk.len()).filter(|&e| kind[e] == Kind::Wall).collect();
+    while let Some(e) = q.pop_front() {
+        for f in FACES {
+            let k = ijk[e];
+            if let Some(&j) = cells.get(&[k[0] + f[0], k[1] + f[1], k[2] + f[2]])
+                && !reached[j]
+            {
+                reached[j] = true;
+                blood.push((j, e));
+                q.push_back(j);
+            }
+        }
+    }
+    blood
+}
+
+const FACES: [[i32; 3]; 6] = [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]];
+
+impl VesselLattice {
+    /// Sample the lumen of `rest_sdf` around the clamp pose `clamp` (the
+    /// flood starts at the clamp, which must lie in the lumen).
+    pub fn new(
+        rest_sdf: Arc<dyn Sdf>,
+        motion: Arc<dyn VesselMotion>,
+        clamp: &Iso3,
+        cfg: &LatticeConfig,
+    ) -> Result<Self, String> {
+        let h = cfg.spacing;
+        if !(h > 0.0 && h.is_finite()) {
+            return Err(format!("vessel_spacing must be > 0 m, got {h}"));
+        }
+        if !(cfg.reach > 0.0 && cfg.reach.is_finite()) {
+            return Err(format!("lattice reach must be > 0 m, got {}", cfg.reach));
+        }
+        cfg.links.validate()?;
+        let origin = clamp.translation.vector;
+        let axes = clamp.rotation.to_rotation_matrix().into_inner();
+        if !(rest_sdf.distance(&origin) < 0.0) {
+            return Err("the clamp is not inside the vessel lumen: no lattice to flood".into());
+        }
+        let Flood { cells, ijk, kind, rest } = Flood::new(rest_sdf.as_ref(), origin, axes, cfg)?;
+        let ne = ijk.len();
+        let (ring_start, ring) = rings(&cells, &ijk, &kind);
         let driven: Vec<usize> = (0..ne).filter(|&e| kind[e] == Kind::Driven).collect();
         let wall: Vec<(usize, Vec3)> = (0..ne)
             .filter(|&e| kind[e] == Kind::Wall && ring_start[e + 1] > ring_start[e])
@@ -223,23 +271,7 @@ impl VesselLattice {
                 (e, rest[e] - mean)
             })
             .collect();
-        // breadth-first from the wall layer inwards: each blood element's
-        // sponsor is the neighbour that reached it first
-        let mut blood = Vec::new();
-        let mut reached: Vec<bool> = kind.iter().map(|&k| k != Kind::Blood).collect();
-        let mut q: VecDeque<usize> = (0..ne).filter(|&e| kind[e] == Kind::Wall).collect();
-        while let Some(e) = q.pop_front() {
-            for f in FACES {
-                let k = ijk[e];
-                if let Some(&j) = cells.get(&[k[0] + f[0], k[1] + f[1], k[2] + f[2]])
-                    && !reached[j]
-                {
-                    reached[j] = true;
-                    blood.push((j, e));
-                    q.push_back(j);
-                }
-            }
-        }
+        let blood = blood_sponsors(&cells, &ijk, &kind);
         if !kind.contains(&Kind::Wall) {
             return Err(format!(
                 "vessel_spacing {h} m resolves no wall layer of the lumen: use a finer spacing"

@@ -87,6 +87,22 @@ pub enum SimError {
     },
 }
 
+impl SimError {
+    /// A step of `dt` (s) at simulated time `t` (s): `dt` must be finite and
+    /// positive, else the step fails with a [`SimError::SolverFailed`]
+    /// naming it.
+    pub fn check_dt(t: f64, dt: f64) -> Result<(), SimError> {
+        if dt > 0.0 && dt.is_finite() {
+            Ok(())
+        } else {
+            Err(SimError::SolverFailed {
+                t,
+                reason: format!("time step must be > 0 s, got {dt}"),
+            })
+        }
+    }
+}
+
 impl fmt::Display for SimError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {

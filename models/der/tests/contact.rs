@@ -12,19 +12,16 @@ use surgbench_core::{
 };
 use surgbench_der::{DerFactory, DerRod};
 
+mod common;
+use common::{sagging_wire, wire_body, x_tube};
+
 /// Sagging onto the wall of a 1 mm tube (free sag would be ~4 mm): at rest,
 /// hand force + wall forces balance the weight, and no node penetrates.
 #[test]
 fn wire_resting_on_tube_wall_balances_forces() {
-    let body = RodBody::uniform(0.2, 2e-4, 5e10, 0.3, 6450.0);
-    let mut rod = DerRod::from_body(&body, 40).unwrap();
-    rod.gravity = Vec3::new(0.0, 0.0, -9.81);
-    rod.params.damping = 50.0;
-    let tube = StraightTube {
-        origin: Vec3::zeros(),
-        axis: Vec3::x(),
-        radius: 1e-3,
-    };
+    let body = wire_body();
+    let mut rod = sagging_wire(&body, 40);
+    let tube = x_tube();
     let contact = ContactParams {
         friction_static: 0.2,
         friction_dynamic: 0.15,
@@ -92,16 +89,10 @@ fn wire_resting_on_tube_wall_balances_forces() {
 #[test]
 fn contact_energy_is_consistent_with_contact_forces() {
     use surgbench_core::EnergyProbe;
-    let body = RodBody::uniform(0.2, 2e-4, 5e10, 0.3, 6450.0);
-    let mut rod = DerRod::from_body(&body, 20).unwrap();
-    rod.gravity = Vec3::new(0.0, 0.0, -9.81);
-    rod.params.damping = 50.0;
+    let body = wire_body();
+    let mut rod = sagging_wire(&body, 20);
     let mut free = rod.clone();
-    let tube = StraightTube {
-        origin: Vec3::zeros(),
-        axis: Vec3::x(),
-        radius: 1e-3,
-    };
+    let tube = x_tube();
     let contact = ContactParams {
         friction_static: 0.0,
         friction_dynamic: 0.0,

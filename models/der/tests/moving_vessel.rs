@@ -4,17 +4,11 @@
 
 use std::sync::Arc;
 use surgbench_core::motion::{CardiacMotion, VesselMotion};
-use surgbench_core::sdf::StraightTube;
 use surgbench_core::{ContactParams, DeviceCommand, Environment, RodBody, Sdf, Vec3};
 use surgbench_der::DerRod;
 
-fn tube() -> StraightTube {
-    StraightTube {
-        origin: Vec3::zeros(),
-        axis: Vec3::x(),
-        radius: 1e-3,
-    }
-}
+mod common;
+use common::{sagging_wire, wire_body, x_tube};
 
 /// A wire lying on the bottom of a tube whose wall then slides along its
 /// axis (the whole tube translates with `x(t) = A s(t)`): the clamped wire
@@ -23,16 +17,14 @@ fn tube() -> StraightTube {
 /// still wall would see no slip and give no force at all.
 #[test]
 fn friction_is_measured_against_the_moving_wall() {
-    let body = RodBody::uniform(0.2, 2e-4, 5e10, 0.3, 6450.0);
-    let mut rod = DerRod::from_body(&body, 40).unwrap();
-    rod.gravity = Vec3::new(0.0, 0.0, -9.81);
-    rod.params.damping = 50.0;
+    let body = wire_body();
+    let mut rod = sagging_wire(&body, 40);
     let contact = ContactParams {
         friction_static: 0.2,
         friction_dynamic: 0.15,
         margin: 2e-4,
     };
-    let vessel: Arc<dyn Sdf> = Arc::new(tube());
+    let vessel: Arc<dyn Sdf> = Arc::new(x_tube());
     rod.set_vessel(Some(vessel.clone()), contact);
     let dt = 1e-3;
     for _ in 0..1500 {
@@ -88,7 +80,7 @@ fn wire_follows_a_swinging_lumen() {
     };
     let motion = CardiacMotion::new(Vec3::zeros(), Vec3::x(), Vec3::z(), 0.01, 0.03, 2e-3, 1.2).unwrap();
     let env = Environment {
-        vessel: Some(Arc::new(tube())),
+        vessel: Some(Arc::new(x_tube())),
         flow: None,
         vessel_motion: Some(Arc::new(motion.clone())),
         contact,

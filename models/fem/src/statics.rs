@@ -281,14 +281,6 @@ pub(crate) fn equilibrate(
     let rest = solid.rest.clone();
     let free = sys.free.clone();
     let zero_mass = vec![0.0; n];
-    let fnorm = |v: &[f64]| {
-        v.iter()
-            .zip(&free)
-            .filter(|(_, f)| **f)
-            .map(|(a, _)| a * a)
-            .sum::<f64>()
-            .sqrt()
-    };
     let mut out = Newton {
         r: vec![0.0; 3 * n],
         ..Default::default()
@@ -303,31 +295,14 @@ pub(crate) fn equilibrate(
             None => dead_load.to_vec(),
         }
     };
-    let mut scale = fnorm(&total(x));
+    let mut scale = free_norm(&total(x), &free);
     let mut it = 0;
     let mut prev_rn = f64::INFINITY;
     loop {
         let load = total(x);
         let load = &load[..];
-        let st = solid.evaluate(x, Some(jac), 0.0);
-        out.energy = st.energy + contact.map_or(0.0, |c| c.energy(x));
-        out.inverted = st.inverted;
-        if law == Law::NeoHookean && st.inverted > 0 {
-            return Err(FemError::Inverted {
-                step,
-                elements: st.inverted,
-            });
-        }
-        let r = &mut out.r;
-        for i in 0..n {
-            for a in 0..3 {
-                r[3 * i + a] = solid.forces[i][a] + load[3 * i + a];
-            }
-        }
-        if let Some(c) = contact {
-            c.add_forces(x, r);
-        }
-        let rn = fnorm(r);
+        evaluate_residual(solid, x, load, contact, jac, step, &mut out)?;
+        let rn = free_norm(&out.r, &free);
         if it == 0 {
             // Force level of the body: the step's first residual, the load,
             // and the elastic forces on all DOFs (at the constrained ones,
@@ -358,62 +333,140 @@ pub(crate) fn equilibrate(
         }
         prev_rn = rn;
         it += 1;
-        // The elastic Jacobian, plus the contact blocks when a node touches.
-        let mut kc = contact.and_then(|c| c.add_to(&solid.kmat, &solid.pat.diag, x, false));
-        sys.set_values(&solid.pat, kc.as_deref().unwrap_or(&solid.kmat), 1.0, &zero_mass, 0.0);
-        let mut dx = r.clone();
-        match params.solver {
-            LinearSolver::Cholesky(ord) => {
-                if let Err(e) = sys.factorize(&solid.pat, ord) {
-                    if jac != Jacobian::Exact {
-                        return Err(FemError::LinearSolver(e));
-                    }
-                    // Indefinite exact Hessian: for this iteration only,
-                    // clamp each element's negative eigenvalues (keeps the
-                    // curvature of the rotation and volume terms). The
-                    // warped stiffness `R K0 R^T` drops
-                    // `(lambda tr(S - I) - 2 mu) dR`, which for nu -> 1/2
-                    // under compression is large: Newton then crawled (rate
-                    // ~0.8 per iteration at nu = 0.499) and failed the
-                    // truth-cube scene at 12.5 % compression. The next
-                    // iteration tries the exact Hessian again (quadratic
-                    // convergence once it is positive definite: see
-                    // tests/issue_newton_exact_after_fallback.rs).
-                    solid.evaluate(x, Some(Jacobian::Projected), 0.0);
-                    out.fallbacks += 1;
-                    kc = contact.and_then(|c| c.add_to(&solid.kmat, &solid.pat.diag, x, true));
-                    sys.set_values(&solid.pat, kc.as_deref().unwrap_or(&solid.kmat), 1.0, &zero_mass, 0.0);
-                    sys.factorize(&solid.pat, ord).map_err(FemError::LinearSolver)?;
-                }
-                sys.solve_cholesky(&mut dx);
-            }
-            LinearSolver::Cg { tol, max_iter } => {
-                let mut sol = vec![0.0; 3 * n];
-                let pat = &solid.pat;
-                let kmat = kc.as_deref().unwrap_or(&solid.kmat);
-                let rr = &*r;
-                solid.install(|| sys.solve_cg(pat, kmat, 1.0, &zero_mass, 0.0, rr, &mut sol, tol, max_iter));
-                dx = sol;
-            }
-        }
-        // Backtracking on Pi(x) = E(x) - load . (x - X); the slope along
-        // dx is -r . dx < 0 for a positive definite Jacobian.
-        let mut alpha = 1.0;
-        if law != Law::Linear || contact.is_some() {
-            let pi0 = out.energy - dot_disp(load, x, &rest);
-            let slope = -r.iter().zip(&dx).map(|(a, b)| a * b).sum::<f64>();
-            for _ in 0..20 {
-                let xt = add_scaled(x, &dx, alpha);
-                let e = solid.evaluate(&xt, None, 0.0).energy + contact.map_or(0.0, |c| c.energy(&xt));
-                let pi = e - dot_disp(load, &xt, &rest);
-                if pi.is_finite() && pi <= pi0 + 1e-4 * alpha * slope + 1e-12 * pi0.abs() {
-                    break;
-                }
-                alpha *= 0.5;
-            }
-        }
+        let dx = newton_update(solid, sys, x, contact, params, jac, &zero_mass, &mut out)?;
+        let alpha = if law != Law::Linear || contact.is_some() {
+            backtrack(solid, x, &dx, load, &rest, contact, &out)
+        } else {
+            1.0
+        };
         *x = add_scaled(x, &dx, alpha);
     }
+}
+
+/// Euclidean norm of `v` over the free DOFs.
+fn free_norm(v: &[f64], free: &[bool]) -> f64 {
+    v.iter()
+        .zip(free)
+        .filter(|(_, f)| **f)
+        .map(|(a, _)| a * a)
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// Evaluate the body at `x` (with the Jacobian `jac`) into `out`: energy
+/// (contact included), inverted elements (an error for neo-Hookean) and
+/// the force residual `r = f_el + load (+ f_c)` per DOF (N).
+fn evaluate_residual(
+    solid: &mut Solid,
+    x: &[Vec3],
+    load: &[f64],
+    contact: Option<&SphereContact>,
+    jac: Jacobian,
+    step: usize,
+    out: &mut Newton,
+) -> Result<(), FemError> {
+    let st = solid.evaluate(x, Some(jac), 0.0);
+    out.energy = st.energy + contact.map_or(0.0, |c| c.energy(x));
+    out.inverted = st.inverted;
+    if solid.mat.law == Law::NeoHookean && st.inverted > 0 {
+        return Err(FemError::Inverted {
+            step,
+            elements: st.inverted,
+        });
+    }
+    let r = &mut out.r;
+    for i in 0..solid.n_nodes() {
+        for a in 0..3 {
+            r[3 * i + a] = solid.forces[i][a] + load[3 * i + a];
+        }
+    }
+    if let Some(c) = contact {
+        c.add_forces(x, r);
+    }
+    Ok(())
+}
+
+/// The Newton update `dx` solving `K dx = r` for the residual `out.r`, with
+/// the elastic Jacobian plus the contact blocks when a node touches. An
+/// indefinite exact Hessian falls back to the projected one for this
+/// iteration (counted in `out.fallbacks`).
+#[allow(clippy::too_many_arguments)]
+fn newton_update(
+    solid: &mut Solid,
+    sys: &mut System,
+    x: &[Vec3],
+    contact: Option<&SphereContact>,
+    params: &StaticParams,
+    jac: Jacobian,
+    zero_mass: &[f64],
+    out: &mut Newton,
+) -> Result<Vec<f64>, FemError> {
+    let n = solid.n_nodes();
+    let r = &out.r;
+    let mut kc = contact.and_then(|c| c.add_to(&solid.kmat, &solid.pat.diag, x, false));
+    sys.set_values(&solid.pat, kc.as_deref().unwrap_or(&solid.kmat), 1.0, zero_mass, 0.0);
+    let mut dx = r.clone();
+    match params.solver {
+        LinearSolver::Cholesky(ord) => {
+            if let Err(e) = sys.factorize(&solid.pat, ord) {
+                if jac != Jacobian::Exact {
+                    return Err(FemError::LinearSolver(e));
+                }
+                // Indefinite exact Hessian: for this iteration only,
+                // clamp each element's negative eigenvalues (keeps the
+                // curvature of the rotation and volume terms). The
+                // warped stiffness `R K0 R^T` drops
+                // `(lambda tr(S - I) - 2 mu) dR`, which for nu -> 1/2
+                // under compression is large: Newton then crawled (rate
+                // ~0.8 per iteration at nu = 0.499) and failed the
+                // truth-cube scene at 12.5 % compression. The next
+                // iteration tries the exact Hessian again (quadratic
+                // convergence once it is positive definite: see
+                // tests/issue_newton_exact_after_fallback.rs).
+                solid.evaluate(x, Some(Jacobian::Projected), 0.0);
+                out.fallbacks += 1;
+                kc = contact.and_then(|c| c.add_to(&solid.kmat, &solid.pat.diag, x, true));
+                sys.set_values(&solid.pat, kc.as_deref().unwrap_or(&solid.kmat), 1.0, zero_mass, 0.0);
+                sys.factorize(&solid.pat, ord).map_err(FemError::LinearSolver)?;
+            }
+            sys.solve_cholesky(&mut dx);
+        }
+        LinearSolver::Cg { tol, max_iter } => {
+            let mut sol = vec![0.0; 3 * n];
+            let pat = &solid.pat;
+            let kmat = kc.as_deref().unwrap_or(&solid.kmat);
+            solid.install(|| sys.solve_cg(pat, kmat, 1.0, zero_mass, 0.0, r, &mut sol, tol, max_iter));
+            dx = sol;
+        }
+    }
+    Ok(dx)
+}
+
+/// Backtracking on `Pi(x) = E(x) - load . (x - X)` along `dx` from the
+/// state of `out` (energy, residual); the slope along `dx` is `-r . dx < 0`
+/// for a positive definite Jacobian. Returns the step fraction.
+fn backtrack(
+    solid: &mut Solid,
+    x: &[Vec3],
+    dx: &[f64],
+    load: &[f64],
+    rest: &[Vec3],
+    contact: Option<&SphereContact>,
+    out: &Newton,
+) -> f64 {
+    let mut alpha = 1.0;
+    let pi0 = out.energy - dot_disp(load, x, rest);
+    let slope = -out.r.iter().zip(dx).map(|(a, b)| a * b).sum::<f64>();
+    for _ in 0..20 {
+        let xt = add_scaled(x, dx, alpha);
+        let e = solid.evaluate(&xt, None, 0.0).energy + contact.map_or(0.0, |c| c.energy(&xt));
+        let pi = e - dot_disp(load, &xt, rest);
+        if pi.is_finite() && pi <= pi0 + 1e-4 * alpha * slope + 1e-12 * pi0.abs() {
+            break;
+        }
+        alpha *= 0.5;
+    }
+    alpha
 }
 
 fn add_scaled(x: &[Vec3], dx: &[f64], a: f64) -> Vec<Vec3> {

@@ -25,6 +25,7 @@
 //! backward) without fused multiply-adds, so the AVX2 build (pulp's `V3`,
 //! checked at run time) and the scalar build give the same bits as well.
 
+use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
 use faer::sparse::linalg::cholesky::{SymbolicCholesky, SymbolicCholeskyRaw};
 
 /// One supernode in a part's local numbering.
@@ -51,33 +52,30 @@ struct Part {
     tmp: Vec<f32>,
 }
 
-/// The cut of a supernodal factor into a top and two bins (see the module docs).
-pub struct SplitSolve {
-    top: Part,
-    bins: [Part; 2],
-    /// Factor values in bin 0, bin 1 and the top.
-    pub values: [usize; 3],
+/// The supernodal elimination tree: the parent of a supernode owns its
+/// first off-diagonal row, and parents come after their children.
+struct Tree {
+    /// Supernodes.
+    ns: usize,
+    /// Supernode of every column.
+    snode_of: Vec<usize>,
+    children: Vec<Vec<usize>>,
+    roots: Vec<usize>,
+    /// Factor values of each supernode's subtree.
+    work: Vec<usize>,
 }
 
-impl SplitSolve {
-    /// Cut the supernodal elimination tree of `symbolic` (`None` when faer
-    /// chose a simplicial factorization). `dofs[i]` is the full-DOF index of
-    /// free unknown `i`.
-    pub fn new(symbolic: &SymbolicCholesky<usize>, dofs: &[usize]) -> Option<Self> {
-        let SymbolicCholeskyRaw::Supernodal(sn) = symbolic.raw() else {
-            return None;
-        };
+impl Tree {
+    /// The tree of the supernodal factor `sn`.
+    fn new(sn: &SymbolicSupernodalCholesky<usize>) -> Self {
         let ns = sn.n_supernodes();
         let (begin, end) = (sn.supernode_begin(), sn.supernode_end());
         let val_ptr = sn.col_ptr_for_val();
-        let n = symbolic.nrows();
-        let mut snode_of = vec![0usize; n];
+        let mut snode_of = vec![0usize; sn.nrows()];
         for s in 0..ns {
             snode_of[begin[s]..end[s]].fill(s);
         }
         let pattern = |s: usize| sn.supernode(s).pattern();
-        // Elimination tree of the supernodes: the parent owns the first
-        // off-diagonal row. Parents come after their children.
         let mut children: Vec<Vec<usize>> = vec![Vec::new(); ns];
         let mut roots = Vec::new();
         for s in 0..ns {
@@ -92,9 +90,21 @@ impl SplitSolve {
                 work[snode_of[r]] += work[s];
             }
         }
-        // Move the largest subtree's root into the top, one at a time, and
-        // keep the cut with the shortest critical path (top plus the
-        // heavier bin); stop once the top holds half the factor.
+        Self {
+            ns,
+            snode_of,
+            children,
+            roots,
+            work,
+        }
+    }
+
+    /// The part of every supernode (0, 1: bins; 2: top). Moves the largest
+    /// subtree's root into the top, one at a time, and keeps the cut with
+    /// the shortest critical path (top plus the heavier bin); stops once the
+    /// top holds half the factor.
+    fn cut(&self) -> Vec<u8> {
+        let (work, children) = (&self.work, &self.children);
         let deal = |subtrees: &[usize]| -> ([usize; 2], Vec<(usize, usize)>) {
             let mut order = subtrees.to_vec();
             order.sort_by_key(|&s| (std::cmp::Reverse(work[s]), s));
@@ -107,8 +117,8 @@ impl SplitSolve {
             }
             (load, assign)
         };
-        let all: usize = roots.iter().map(|&s| work[s]).sum();
-        let mut subtrees = roots;
+        let all: usize = self.roots.iter().map(|&s| work[s]).sum();
+        let mut subtrees = self.roots.clone();
         let mut top: Vec<usize> = Vec::new();
         let mut top_work = 0;
         let mut best = (usize::MAX, 0, Vec::new());
@@ -126,7 +136,7 @@ impl SplitSolve {
             top_work += work[big] - children[big].iter().map(|&c| work[c]).sum::<usize>();
             subtrees.extend(&children[big]);
         }
-        let mut owner = vec![2u8; ns];
+        let mut owner = vec![2u8; self.ns];
         for (root, b) in best.2 {
             let mut stack = vec![root];
             while let Some(s) = stack.pop() {
@@ -134,10 +144,18 @@ impl SplitSolve {
                 stack.extend(&children[s]);
             }
         }
-        let perm = symbolic.perm().map(|p| p.arrays().0);
-        let full = |col: usize| dofs[perm.map_or(col, |f| f[col])];
-        // Local numbering: each part's supernodes in increasing order.
-        let mut local = vec![0usize; n];
+        owner
+    }
+
+    /// The three parts (bin 0, bin 1, top) of the cut `owner`, each in its
+    /// local numbering (its supernodes in increasing order); `full(col)` is
+    /// the full-DOF index of factor column `col`.
+    fn parts(&self, sn: &SymbolicSupernodalCholesky<usize>, owner: &[u8], full: impl Fn(usize) -> usize) -> Vec<Part> {
+        let ns = self.ns;
+        let (begin, end) = (sn.supernode_begin(), sn.supernode_end());
+        let val_ptr = sn.col_ptr_for_val();
+        let pattern = |s: usize| sn.supernode(s).pattern();
+        let mut local = vec![0usize; sn.nrows()];
         let mut parts: Vec<Part> = (0..3)
             .map(|_| Part {
                 src: Vec::new(),
@@ -160,7 +178,7 @@ impl SplitSolve {
             let pat: Vec<u32> = pattern(s)
                 .iter()
                 .map(|&r| {
-                    let ro = owner[snode_of[r]] as usize;
+                    let ro = owner[self.snode_of[r]] as usize;
                     debug_assert!(ro == o || ro == 2, "supernode {s} (part {o}) updates part {ro}");
                     (if ro == o { local[r] } else { n_own + local[r] }) as u32
                 })
@@ -177,11 +195,37 @@ impl SplitSolve {
         for (o, p) in parts.iter_mut().enumerate() {
             p.buf = vec![0.0; p.src.len() + if o < 2 { n_top } else { 0 }];
         }
+        parts
+    }
+}
+
+/// The cut of a supernodal factor into a top and two bins (see the module docs).
+pub struct SplitSolve {
+    top: Part,
+    bins: [Part; 2],
+    /// Factor values in bin 0, bin 1 and the top.
+    pub values: [usize; 3],
+}
+
+impl SplitSolve {
+    /// Cut the supernodal elimination tree of `symbolic` (`None` when faer
+    /// chose a simplicial factorization). `dofs[i]` is the full-DOF index of
+    /// free unknown `i`.
+    pub fn new(symbolic: &SymbolicCholesky<usize>, dofs: &[usize]) -> Option<Self> {
+        let SymbolicCholeskyRaw::Supernodal(sn) = symbolic.raw() else {
+            return None;
+        };
+        let tree = Tree::new(sn);
+        let owner = tree.cut();
+        let perm = symbolic.perm().map(|p| p.arrays().0);
+        let full = |col: usize| dofs[perm.map_or(col, |f| f[col])];
+        let mut parts = tree.parts(sn, &owner, full);
         let top = parts.pop().expect("three parts");
         let b1 = parts.pop().expect("three parts");
         let b0 = parts.pop().expect("three parts");
+        let val_ptr = sn.col_ptr_for_val();
         let mut values = [0; 3];
-        for s in 0..ns {
+        for s in 0..tree.ns {
             values[owner[s] as usize] += val_ptr[s + 1] - val_ptr[s];
         }
         Some(Self {

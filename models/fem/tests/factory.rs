@@ -8,6 +8,14 @@ use surgbench_core::{
 };
 use surgbench_fem::{DynParams, FemFactory, FemModel, Integrator, Law, LinearSolver};
 
+/// The command that holds the scene's load ramp at factor `load`.
+fn at_load(load: f64) -> DeviceCommand {
+    DeviceCommand {
+        load,
+        ..Default::default()
+    }
+}
+
 fn block_body(n: usize, squash: f64) -> TissueBody {
     let l = 0.02;
     let m = mesh::block(Vec3::new(l, l, l), [n, n, n]);
@@ -80,15 +88,7 @@ fn quasi_static_scene_compresses_and_reports_hand_force() {
     let f = FemFactory;
     let sc = scene(true);
     let mut m = f.build(&sc, &Fidelity::default()).unwrap();
-    let st = m
-        .step(
-            1e-3,
-            &DeviceCommand {
-                load: 1.0,
-                ..Default::default()
-            },
-        )
-        .unwrap();
+    let st = m.step(1e-3, &at_load(1.0)).unwrap();
     let o = m.observe();
     assert!(o.is_finite());
     // Body pushes back up on the plate that presses it down.
@@ -261,14 +261,7 @@ fn neo_hookean_inversion_is_an_error_not_a_panic() {
 fn energy_probe_forces_match_energy() {
     let f = FemFactory;
     let mut m = f.build(&scene(false), &Fidelity::default()).unwrap();
-    m.step(
-        1e-3,
-        &DeviceCommand {
-            load: 0.5,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    m.step(1e-3, &at_load(0.5)).unwrap();
     let probe = m.energy_probe().unwrap();
     let q = probe.coords();
     let forces = probe.forces();
@@ -325,15 +318,7 @@ fn pressure_faces_and_rollers_reproduce_lame_through_the_factory() {
     let mut model = f
         .build(&sc, &Fidelity::parse_pairs(&["material_law=linear"]).unwrap())
         .unwrap();
-    model
-        .step(
-            1e-3,
-            &DeviceCommand {
-                load: 1.0,
-                ..Default::default()
-            },
-        )
-        .unwrap();
+    model.step(1e-3, &at_load(1.0)).unwrap();
     let o = model.observe();
     let exact =
         |r: f64| p * a * a / (e * (b * b - a * a)) * ((1.0 + nu) * (1.0 - 2.0 * nu) * r + (1.0 + nu) * b * b / r);

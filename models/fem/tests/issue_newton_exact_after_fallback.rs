@@ -17,12 +17,11 @@
 //! saddle (one negative tangent eigenvalue, `truth_cube_stability.rs`), so
 //! the exact tangent is never positive definite near the solution.
 
-use std::f64::consts::PI;
 use surgbench_core::Vec3;
 use surgbench_fem::{DynParams, FemModel, Integrator, Law};
 
 mod common;
-use common::truth_cube_body;
+use common::{cosine_ramp, truth_cube_body};
 
 /// Ramp to `strain` over 250 steps and hold 5; Newton iterations of every step
 /// and the final model.
@@ -39,11 +38,7 @@ fn ramp(law: Law, strain: f64) -> (Vec<u32>, FemModel) {
     let mut its = Vec::new();
     for k in 0..255 {
         let t = (k + 1) as f64 * dt;
-        let s = if t >= t_ramp {
-            1.0
-        } else {
-            0.5 * (1.0 - (PI * t / t_ramp).cos())
-        };
+        let s = cosine_ramp(t, t_ramp);
         let st = m
             .advance(dt, s)
             .unwrap_or_else(|e| panic!("{law:?} {strain}: step {k} (load {s:.3}): {e}"));

@@ -27,12 +27,11 @@
 //!   problem. That case is kept below as an ignored, failing test
 //!   (`corotational_truth_cube_12_5_percent`).
 
-use std::f64::consts::PI;
 use surgbench_core::Vec3;
 use surgbench_fem::{DynParams, FemModel, Integrator, Law};
 
 mod common;
-use common::truth_cube_body;
+use common::{cosine_ramp, truth_cube_body};
 
 /// Ramp to `strain` and hold for `steps - 250` steps; the largest Newton
 /// iteration count of a step, or the error of the failing step.
@@ -50,11 +49,7 @@ fn run(law: Law, strain: f64, steps: usize) -> Result<u32, String> {
     for k in 0..steps {
         let t = (k + 1) as f64 * dt;
         // The scenario's cosine ramp (16 linear segments there; exact here).
-        let s = if t >= ramp {
-            1.0
-        } else {
-            0.5 * (1.0 - (PI * t / ramp).cos())
-        };
+        let s = cosine_ramp(t, ramp);
         let st = m
             .advance(dt, s)
             .map_err(|e| format!("{law:?} strain {strain}: step {k} (t = {t:.3} s, load {s:.3}): {e}"))?;

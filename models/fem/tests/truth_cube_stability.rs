@@ -51,13 +51,12 @@
 //! 1701 DOFs would take too long for a unit test).
 
 use nalgebra::{DMatrix, SymmetricEigen};
-use std::f64::consts::PI;
 use surgbench_core::{TissueBody, Vec3};
 use surgbench_fem::core::Solid;
 use surgbench_fem::{DynParams, FemModel, Integrator, Jacobian, Law};
 
 mod common;
-use common::{TRUTH_CUBE_EDGE as EDGE, truth_cube_body as body};
+use common::{TRUTH_CUBE_EDGE as EDGE, cosine_ramp, truth_cube_body as body};
 
 /// Free DOFs (not on the plates), in DOF order.
 fn free_dofs(b: &TissueBody) -> Vec<usize> {
@@ -94,15 +93,6 @@ fn tangent(b: &TissueBody, law: Law, x: &[Vec3]) -> DMatrix<f64> {
     k
 }
 
-/// The scenario's cosine ramp over 0.25 s.
-fn ramp(t: f64) -> f64 {
-    if t >= 0.25 {
-        1.0
-    } else {
-        0.5 * (1.0 - (PI * t / 0.25).cos())
-    }
-}
-
 /// A converged state: strain and node positions (m).
 type State = (f64, Vec<Vec3>);
 
@@ -125,7 +115,7 @@ fn ramp_states(law: Law, strain: f64, n: usize, marks: &[f64], steps: Option<usi
     let count = steps.unwrap_or(255);
     for k in 0..count {
         let s = match steps {
-            None => ramp((k + 1) as f64 * 1e-3),
+            None => cosine_ramp((k + 1) as f64 * 1e-3, 0.25),
             Some(c) => (k + 1) as f64 / c as f64,
         };
         if m.advance(1e-3, s).is_err() {

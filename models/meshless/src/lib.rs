@@ -35,6 +35,7 @@
 
 pub mod contact;
 pub mod elastic;
+mod factory;
 pub mod kdtree;
 pub mod kernel;
 pub mod mls;
@@ -44,10 +45,8 @@ pub mod pressure;
 
 pub use contact::SphereContact;
 pub use elastic::{PointElastic, StateCache};
+pub use factory::{MESHLESS_KEYS, MeshlessFactory};
 pub use mls::MlsMap;
-pub use model::{
-    Integrator, MESHLESS_KEYS, MappingError, MeshlessFactory, MeshlessSettings, MeshlessTissue, local_edge_lengths,
-    longest_edges,
-};
+pub use model::{Integrator, MappingError, MeshlessSettings, MeshlessTissue, local_edge_lengths, longest_edges};
 pub use pbd::PbdConstraints;
 pub use pressure::PressureLoad;

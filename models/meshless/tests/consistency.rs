@@ -4,24 +4,12 @@
 
 mod common;
 
-use common::{Rng, jittered_block};
+use common::{Rng, forces, jittered_block, total, volumes};
 use nalgebra::Rotation3;
 use surgbench_core::{Mat3, Vec3, mesh};
 use surgbench_meshless::{MlsMap, PointElastic, StateCache};
 
 const E: f64 = 1e4;
-
-fn volumes(m: &surgbench_core::TetMesh) -> Vec<f64> {
-    let mut v = vec![0.0; m.nodes.len()];
-    for t in &m.tets {
-        let p = t.map(|i| m.nodes[i]);
-        let vol = mesh::tet_volume(&p[0], &p[1], &p[2], &p[3]).abs();
-        for &i in t {
-            v[i] += vol / 4.0;
-        }
-    }
-    v
-}
 
 /// A jittered 4x3x3-cell block (cell ~2.5 mm) and its discretisation.
 fn setup(nu: f64, gamma: f64) -> (surgbench_core::TetMesh, PointElastic) {
@@ -36,19 +24,6 @@ fn setup(nu: f64, gamma: f64) -> (surgbench_core::TetMesh, PointElastic) {
     )
     .unwrap();
     (m, el)
-}
-
-fn forces(el: &PointElastic, x: &[Vec3]) -> Vec<Vec3> {
-    let mut c = StateCache::default();
-    el.prepare(x, &mut c);
-    let mut f = vec![Vec3::zeros(); x.len()];
-    el.add_forces(x, &c, &mut f);
-    f
-}
-
-fn total(el: &PointElastic, x: &[Vec3]) -> f64 {
-    let (u, hg) = el.energy(x);
-    u + hg
 }
 
 #[test]

@@ -11,7 +11,7 @@
 
 mod common;
 
-use common::{Rng, material, ramp, tissue_scene_with};
+use common::{Rng, forces, material, ramp, tissue_scene_with, total, volumes};
 use surgbench_core::scene::SphereIndenter;
 use surgbench_core::{Fidelity, Mat3, Model, ModelFactory, Scene, Settle, TetMesh, TissueBody, Vec3, mesh};
 use surgbench_meshless::{MeshlessFactory, MeshlessTissue, MlsMap, PointElastic, StateCache, local_edge_lengths};
@@ -36,18 +36,6 @@ fn graded_block(n: usize, c: f64) -> TetMesh {
     }
     mesh::orient_positive(&mut m);
     m
-}
-
-fn volumes(m: &TetMesh) -> Vec<f64> {
-    let mut v = vec![0.0; m.nodes.len()];
-    for t in &m.tets {
-        let p = t.map(|i| m.nodes[i]);
-        let vol = mesh::tet_volume(&p[0], &p[1], &p[2], &p[3]).abs();
-        for &i in t {
-            v[i] += vol / 4.0;
-        }
-    }
-    v
 }
 
 /// Shortest and longest tet edge (m).
@@ -78,19 +66,6 @@ fn setup(nu: f64, gamma: f64) -> (TetMesh, PointElastic) {
         .clone();
     let el = PointElastic::new(&m.nodes, &volumes(&m), &h, E, nu, gamma * E).unwrap();
     (m, el)
-}
-
-fn forces(el: &PointElastic, x: &[Vec3]) -> Vec<Vec3> {
-    let mut c = StateCache::default();
-    el.prepare(x, &mut c);
-    let mut f = vec![Vec3::zeros(); x.len()];
-    el.add_forces(x, &c, &mut f);
-    f
-}
-
-fn total(el: &PointElastic, x: &[Vec3]) -> f64 {
-    let (u, hg) = el.energy(x);
-    u + hg
 }
 
 /// Displacements of `frac` of each node's local edge length, random

@@ -77,18 +77,15 @@ fn tissue_model(hash_box: f64, threads: usize) -> Box<dyn Model> {
         .map(|i| (i, Vec3::new(-2e-3, 0.0, 0.0)))
         .collect();
     let mut scene = Scene::empty("block-20k");
+    let material = SolidMaterial {
+        youngs_modulus: 1e4,
+        poisson_ratio: 0.45,
+        density: 1000.0,
+    };
     scene.bodies.push(Body::Tissue(TissueBody {
-        mesh,
-        material: SolidMaterial {
-            youngs_modulus: 1e4,
-            poisson_ratio: 0.45,
-            density: 1000.0,
-        },
         fixed_nodes,
         driven_nodes,
-        partial_fixed: vec![],
-        pressure_faces: vec![],
-        indenter: None,
+        ..TissueBody::new(mesh, material)
     }));
     let mut f = Fidelity {
         dt: Some(1e-3),

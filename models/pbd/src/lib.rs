@@ -33,6 +33,7 @@
 //! ```
 
 pub mod color;
+mod factory;
 pub mod ghost;
 pub mod hash;
 pub mod rod;
@@ -40,12 +41,12 @@ pub mod rod;
 pub(crate) mod testrng;
 pub mod tissue;
 
+pub use factory::{PbdRodFactory, PbdTissueFactory};
 pub use ghost::{GhostSurface, SurfaceHit, project_particle_triangle};
 pub use hash::BoxHash;
-pub use rod::{PbdRod, PbdRodFactory, RodSettings, RodSolver};
+pub use rod::{PbdRod, RodSettings, RodSolver};
 pub use tissue::{
-    ContactParticle, ParticleContact, PbdTissue, PbdTissueFactory, StaticInfo, StaticParams, TissueSettings,
-    project_volume,
+    ContactParticle, ParticleContact, PbdTissue, StaticInfo, StaticParams, TissueSettings, project_volume,
 };
 
 /// Range checks of the solver knobs both PBD models share: `dt` (s),

@@ -30,18 +30,14 @@ fn vessel_model() -> PbdTissue {
         .filter(|&i| (mesh.nodes[i].x.hypot(mesh.nodes[i].y) - R_OUT).abs() < 1e-9)
         .collect();
     let mut scene = Scene::empty("vessel-wall");
+    let material = SolidMaterial {
+        youngs_modulus: 5e4,
+        poisson_ratio: 0.45,
+        density: RHO,
+    };
     scene.bodies.push(Body::Tissue(TissueBody {
-        mesh,
-        material: SolidMaterial {
-            youngs_modulus: 5e4,
-            poisson_ratio: 0.45,
-            density: RHO,
-        },
         fixed_nodes,
-        driven_nodes: vec![],
-        partial_fixed: vec![],
-        pressure_faces: vec![],
-        indenter: None,
+        ..TissueBody::new(mesh, material)
     }));
     let mut f = Fidelity {
         dt: Some(1e-3),

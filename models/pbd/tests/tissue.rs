@@ -40,18 +40,15 @@ fn block_scene(
         .map(|i| (i, disp))
         .collect();
     let mut scene = Scene::empty("block");
+    let material = SolidMaterial {
+        youngs_modulus: 1e4,
+        poisson_ratio: nu,
+        density: 1000.0,
+    };
     scene.bodies.push(Body::Tissue(TissueBody {
-        mesh,
-        material: SolidMaterial {
-            youngs_modulus: 1e4,
-            poisson_ratio: nu,
-            density: 1000.0,
-        },
         fixed_nodes,
         driven_nodes,
-        partial_fixed: vec![],
-        pressure_faces: vec![],
-        indenter: None,
+        ..TissueBody::new(mesh, material)
     }));
     scene
 }

@@ -87,47 +87,61 @@ impl DerRod {
     /// gradient over the free DOFs (`self.res`) and Hessian (`self.band`).
     pub(super) fn eval(&mut self, mode: Eval) -> (f64, f64) {
         let full = mode == Eval::Full;
-        let n = self.n;
         let mut phi = 0.0;
         let mut mag = 0.0;
         if full {
             self.grad.iter_mut().for_each(|g| *g = 0.0);
             self.band.clear();
         }
+        self.add_stretch(full, &mut phi);
+        self.add_bend_twist(full, &mut phi);
+        if let Some(sdf) = self.vessel.clone() {
+            self.add_wall(sdf.as_ref(), full, &mut phi);
+        }
+        if self.flow.is_some() && self.inertia.is_some() {
+            self.add_drag(full, &mut phi);
+        }
+        let elastic = phi;
+        self.add_linear_and_inertia(full, &mut phi, &mut mag);
+        (phi, mag + elastic)
+    }
+
+    /// Add the stretching energy of every edge to `phi` (and, if `full`, its
+    /// gradient and Hessian).
+    fn add_stretch(&mut self, full: bool, phi: &mut f64) {
+        let n = self.n;
         for j in 0..n - 1 {
             let (x0, x1) = (self.node(j), self.node(j + 1));
             if !full {
-                phi += energy::stretch_energy(&x0, &x1, self.ea[j], self.rest_len[j]);
+                *phi += energy::stretch_energy(&x0, &x1, self.ea[j], self.rest_len[j]);
                 continue;
             }
             // Exact Hessian, including the negative transverse stiffness of a
             // compressed edge; `newton` drops that part only if the matrix is
             // then not positive definite (see `drop_compressive_stiffness`).
             let (e, g, h) = energy::stretch(&x0, &x1, self.ea[j], self.rest_len[j]);
-            phi += e;
+            *phi += e;
             for c in 0..3 {
                 self.grad[4 * (j + 1) + c] += g[c];
                 self.grad[4 * j + c] -= g[c];
             }
-            let (a, b) = (4 * j, 4 * (j + 1));
-            for r in 0..3 {
-                for c in 0..3 {
-                    let v = h[(r, c)];
-                    self.band_add(b + r, b + c, v);
-                    self.band_add(a + r, a + c, v);
-                    self.band_add(b + r, a + c, -v);
-                }
-            }
+            self.add_edge_block(j, &h);
         }
+    }
+
+    /// Add the bending and twisting energy of every interior vertex to `phi`
+    /// (and, if `full`, its gradient and symmetrised Hessian).
+    fn add_bend_twist(&mut self, full: bool, phi: &mut f64) {
+        let n = self.n;
         for i in 1..n - 1 {
             let st = self.stencil(i);
             if !full {
-                phi += energy::bend_twist_energy(&st, &self.vparams[i]);
+                *phi += energy::bend_twist_energy(&st, &self.vparams[i]);
                 continue;
             }
             let mut terms = std::mem::take(&mut self.terms);
             energy::bend_twist(&st, &self.vparams[i], &mut terms);
-            phi += terms.energy;
+            *phi += terms.energy;
             let off = 4 * (i - 1);
             for r in 0..energy::VERTEX_DOFS {
                 self.grad[off + r] += terms.grad[r];
@@ -137,101 +151,111 @@ impl DerRod {
             }
             self.terms = terms;
         }
-        if let Some(sdf) = self.vessel.clone() {
-            let kc = self.contact_stiffness;
-            // Friction only in dynamic steps (it dissipates the step's slip).
-            let friction = self.inertia.is_some();
-            let eps = self.friction_eps;
-            for k in 2..n {
-                let x = self.node(k);
-                let d = sdf.distance(&x) + self.contact.margin;
+    }
+
+    /// Add the wall penalty and the lagged friction of every free vertex to
+    /// `phi` (and, if `full`, the gaps, gradients and Hessians).
+    fn add_wall(&mut self, sdf: &dyn Sdf, full: bool, phi: &mut f64) {
+        let n = self.n;
+        let kc = self.contact_stiffness;
+        // Friction only in dynamic steps (it dissipates the step's slip).
+        let friction = self.inertia.is_some();
+        let eps = self.friction_eps;
+        for k in 2..n {
+            let x = self.node(k);
+            let d = sdf.distance(&x) + self.contact.margin;
+            if full {
+                self.gap[k] = d;
+            }
+            if d > 0.0 {
+                let (e, de, dde) = penalty(kc, self.contact_onset, d);
+                *phi += e;
                 if full {
-                    self.gap[k] = d;
-                }
-                if d > 0.0 {
-                    let (e, de, dde) = penalty(kc, self.contact_onset, d);
-                    phi += e;
-                    if full {
-                        let g = sdf.gradient(&x);
-                        let gn = g.norm();
-                        let nn = if gn > 0.0 { g / gn } else { g };
-                        let h = nn * nn.transpose() * dde + Self::wall_curvature(sdf.as_ref(), &x, &g) * de;
-                        for r in 0..3 {
-                            self.grad[4 * k + r] += de * nn[r];
-                            for c in 0..=r {
-                                self.band_add(4 * k + r, 4 * k + c, h[(r, c)]);
-                            }
-                        }
-                    }
-                }
-                let fr = self.friction[k];
-                if friction && fr.bound > 0.0 {
-                    if !full {
-                        phi += fr.energy(&x, eps);
-                        continue;
-                    }
-                    let fe = fr.eval(&x, eps);
-                    phi += fe.energy;
+                    let g = sdf.gradient(&x);
+                    let gn = g.norm();
+                    let nn = if gn > 0.0 { g / gn } else { g };
+                    let h = nn * nn.transpose() * dde + Self::wall_curvature(sdf, &x, &g) * de;
                     for r in 0..3 {
-                        self.grad[4 * k + r] += fe.gradient[r];
+                        self.grad[4 * k + r] += de * nn[r];
                         for c in 0..=r {
-                            self.band_add(4 * k + r, 4 * k + c, fe.hessian[(r, c)]);
+                            self.band_add(4 * k + r, 4 * k + c, h[(r, c)]);
                         }
                     }
                 }
             }
-        }
-        if self.flow.is_some() && self.inertia.is_some() {
-            // Lagged quadratic drag as a convex potential of the step (see
-            // the module docs): value `sum (c |u|^3 / 3) / a`, gradient
-            // `-f`, Hessian `a dF/du`.
-            let a = self.drag_a;
-            let newmark = self.params.integrator == Integrator::Newmark;
-            for k in 2..n {
-                let x = self.node(k);
-                let x0 = Vec3::new(self.q0[4 * k], self.q0[4 * k + 1], self.q0[4 * k + 2]);
-                let mut v = (x - x0) * a;
-                if newmark {
-                    v -= self.node_velocity(k);
+            let fr = self.friction[k];
+            if friction && fr.bound > 0.0 {
+                if !full {
+                    *phi += fr.energy(&x, eps);
+                    continue;
                 }
-                let w = self.drag_flow[k];
-                let t = Self::half_edge_tangents(&self.drag_tan[..n - 1], k);
-                let u = w - v;
-                for (i, j) in [k - 1, k].into_iter().enumerate() {
-                    let [cn, ct] = self.half_edge_drag(j);
-                    let ut = t[i] * t[i].dot(&u);
-                    let un = u - ut;
-                    phi += (cn * un.norm().powi(3) + ct * ut.norm().powi(3)) / (3.0 * a);
-                }
-                if full {
-                    let (f, h) = self.node_drag(k, &v, &w, t);
-                    for r in 0..3 {
-                        self.grad[4 * k + r] -= f[r];
-                        for c in 0..=r {
-                            self.band_add(4 * k + r, 4 * k + c, a * h[(r, c)]);
-                        }
+                let fe = fr.eval(&x, eps);
+                *phi += fe.energy;
+                for r in 0..3 {
+                    self.grad[4 * k + r] += fe.gradient[r];
+                    for c in 0..=r {
+                        self.band_add(4 * k + r, 4 * k + c, fe.hessian[(r, c)]);
                     }
                 }
             }
         }
-        let elastic = phi;
+    }
+
+    /// Add the lagged quadratic drag as a convex potential of the step (see
+    /// the module docs) to `phi`: value `sum (c |u|^3 / 3) / a`, gradient
+    /// `-f`, Hessian `a dF/du`.
+    fn add_drag(&mut self, full: bool, phi: &mut f64) {
+        let n = self.n;
+        let a = self.drag_a;
+        let newmark = self.params.integrator == Integrator::Newmark;
+        for k in 2..n {
+            let x = self.node(k);
+            let x0 = Vec3::new(self.q0[4 * k], self.q0[4 * k + 1], self.q0[4 * k + 2]);
+            let mut v = (x - x0) * a;
+            if newmark {
+                v -= self.node_velocity(k);
+            }
+            let w = self.drag_flow[k];
+            let t = Self::half_edge_tangents(&self.drag_tan[..n - 1], k);
+            let u = w - v;
+            for (i, j) in [k - 1, k].into_iter().enumerate() {
+                let [cn, ct] = self.half_edge_drag(j);
+                let ut = t[i] * t[i].dot(&u);
+                let un = u - ut;
+                *phi += (cn * un.norm().powi(3) + ct * ut.norm().powi(3)) / (3.0 * a);
+            }
+            if full {
+                let (f, h) = self.node_drag(k, &v, &w, t);
+                for r in 0..3 {
+                    self.grad[4 * k + r] -= f[r];
+                    for c in 0..=r {
+                        self.band_add(4 * k + r, 4 * k + c, a * h[(r, c)]);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Add the external loads (linear terms measured from the start of the
+    /// step, `q - q0`: the potential differs by a constant, but its value
+    /// and rounding do not depend on where the scene sits in space) and the
+    /// inertia to `phi` and their magnitudes to `mag`; if `full`, write the
+    /// free residual `self.res` and the mass terms of the Hessian.
+    fn add_linear_and_inertia(&mut self, full: bool, phi: &mut f64, mag: &mut f64) {
         let inertia = self.inertia;
-        // Linear terms are measured from the start of the step (q - q0): the
-        // potential differs by a constant, but its value and rounding no
-        // longer depend on where the scene sits in space.
         for g in 0..self.q.len() {
             let q = self.q[g];
             let dq = q - self.q0[g];
-            phi -= self.fext[g] * dq;
-            mag += (self.fext[g] * dq).abs();
+            *phi -= self.fext[g] * dq;
+            *mag += (self.fext[g] * dq).abs();
             let mut r = self.grad[g] - self.fext[g];
             if let Some(Inertia { ka, kc }) = inertia {
                 let m = self.dof_mass(g);
                 if m > 0.0 && g >= CLAMPED_DOFS {
                     let da = q - self.qtilde[g];
                     let inert = m * (0.5 * ka * da * da + 0.5 * kc * dq * dq - self.lin[g] * dq);
-                    phi += inert;
-                    mag += inert.abs();
+                    *phi += inert;
+                    *mag += inert.abs();
                     r += m * (ka * da + kc * dq - self.lin[g]);
                     if full {
                         self.band_add(g, g, m * (ka + kc));
@@ -242,7 +266,6 @@ impl DerRod {
                 self.res[g - CLAMPED_DOFS] = r;
             }
         }
-        (phi, mag + elastic)
     }
 
     /// A compressed edge has a negative transverse stiffness
@@ -262,15 +285,22 @@ impl DerRod {
             }
             let t = (x1 - x0) / l;
             let h = (Mat3::identity() - t * t.transpose()) * (-self.ea[j] * strain / l);
-            let (a, b) = (4 * j, 4 * (j + 1));
-            for r in 0..3 {
-                for c in 0..3 {
-                    // `band_add` keeps the lower triangle only.
-                    let v = h[(r, c)];
-                    self.band_add(b + r, b + c, v);
-                    self.band_add(a + r, a + c, v);
-                    self.band_add(b + r, a + c, -v);
-                }
+            self.add_edge_block(j, &h);
+        }
+    }
+
+    /// Add the Hessian block `h` of edge `j` (the same 3x3 block on both its
+    /// end nodes, its negative between them) to the band.
+    #[inline]
+    fn add_edge_block(&mut self, j: usize, h: &Mat3) {
+        let (a, b) = (4 * j, 4 * (j + 1));
+        for r in 0..3 {
+            for c in 0..3 {
+                // `band_add` keeps the lower triangle only.
+                let v = h[(r, c)];
+                self.band_add(b + r, b + c, v);
+                self.band_add(a + r, a + c, v);
+                self.band_add(b + r, a + c, -v);
             }
         }
     }

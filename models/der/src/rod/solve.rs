@@ -42,39 +42,8 @@ impl DerRod {
         let mut stats = StepStats::default();
         for it in 1..=self.params.max_iterations.max(1) {
             stats.iterations = it as u32;
-            for f in 0..self.dz.len() {
-                self.dz[f] = -self.res[f];
-            }
-            let mut dz = std::mem::take(&mut self.dz);
-            let solved = if self.band.factor(0.0).is_ok() {
-                self.band.solve(&mut dz);
-                Ok(0.0)
-            } else {
-                self.drop_compressive_stiffness();
-                self.band.factor_and_solve(&mut dz, 0.0)
-            };
-            self.dz = dz;
-            if solved.is_err() {
-                let finite = self.res.iter().all(|r| r.is_finite());
-                return Err(SimError::SolverFailed {
-                    t: self.time,
-                    reason: format!(
-                        "Newton matrix not positive definite even with a shift (iteration {it}, residual finite: {finite}, stretch {:.2e})",
-                        self.max_stretch()
-                    ),
-                });
-            }
-            // Largest node displacement (Euclidean, so the test does not
-            // depend on the orientation of the scene) and twist update.
-            let mut size: f64 = 0.0;
-            for k in 2..self.n {
-                let f = 4 * k - CLAMPED_DOFS;
-                let dx = (self.dz[f].powi(2) + self.dz[f + 1].powi(2) + self.dz[f + 2].powi(2)).sqrt();
-                size = size.max(dx / self.length);
-                if f + 3 < self.dz.len() {
-                    size = size.max(self.dz[f + 3].abs());
-                }
-            }
+            self.newton_direction(it)?;
+            let size = self.update_size();
             if !size.is_finite() {
                 return Err(SimError::Diverged {
                     t: self.time,
@@ -89,26 +58,7 @@ impl DerRod {
                 stats.converged = true;
                 return Ok(stats);
             }
-            // Backtracking line search (Armijo) on the incremental potential,
-            // skipped when the predicted decrease is at the rounding level of
-            // the potential (there the full Newton step is the right one).
-            let noise = 1e-13 * *mag;
-            let search = slope < -1e3 * noise;
-            // Step control in contact scenes: the largest fraction of the
-            // Newton step that moves no node too far (see `step_cap`).
-            let mut alpha = if self.vessel.is_some() { self.step_cap() } else { 1.0 };
-            let alpha_min = 1e-3 * alpha;
-            self.set_free(base, alpha);
-            let (mut phi_new, mut mag_new) = self.eval(Eval::Full);
-            let mut backtracked = false;
-            let armijo = |alpha: f64, phi_new: f64| phi_new <= *phi + 1e-4 * alpha * slope + noise;
-            while search && !armijo(alpha, phi_new) && alpha > alpha_min {
-                alpha *= 0.5;
-                self.set_free(base, alpha);
-                (phi_new, mag_new) = self.eval(Eval::Energy);
-                backtracked = true;
-            }
-            if search && !armijo(alpha, phi_new) {
+            let Some((alpha, phi_new, mag_new)) = self.line_search(base, *phi, *mag, slope) else {
                 // No decrease along the Newton direction (a non-smooth
                 // corner of the SDF, or a direction the projected matrix
                 // gets wrong): stop at the last accepted iterate and let
@@ -117,10 +67,7 @@ impl DerRod {
                 self.eval(Eval::Full);
                 stats.residual = size;
                 return Ok(stats);
-            }
-            if backtracked {
-                (phi_new, mag_new) = self.eval(Eval::Full);
-            }
+            };
             stats.residual = size * alpha;
             if !phi_new.is_finite() {
                 return Err(SimError::Diverged {
@@ -128,24 +75,104 @@ impl DerRod {
                     reason: format!("non-finite energy in Newton iteration {it}"),
                 });
             }
-            // Re-anchor the frame transport at the accepted iterate and
-            // refresh the dead loads there.
-            self.anchor_frames();
-            *phi = phi_new;
-            *mag = mag_new;
-            std::mem::swap(&mut self.fext, &mut self.fext_prev);
-            self.external_forces();
-            for g in 0..self.q.len() {
-                let d = self.fext[g] - self.fext_prev[g];
-                if d != 0.0 {
-                    *phi -= d * (self.q[g] - self.q0[g]);
-                    if g >= CLAMPED_DOFS {
-                        self.res[g - CLAMPED_DOFS] -= d;
-                    }
+            self.accept_iterate(phi, mag, phi_new, mag_new);
+        }
+        Ok(stats)
+    }
+
+    /// Solve for the Newton update `self.dz = -H^-1 res` of iteration `it`,
+    /// dropping the compressive stiffness if the matrix is not positive definite.
+    fn newton_direction(&mut self, it: usize) -> Result<(), SimError> {
+        for f in 0..self.dz.len() {
+            self.dz[f] = -self.res[f];
+        }
+        let mut dz = std::mem::take(&mut self.dz);
+        let solved = if self.band.factor(0.0).is_ok() {
+            self.band.solve(&mut dz);
+            Ok(0.0)
+        } else {
+            self.drop_compressive_stiffness();
+            self.band.factor_and_solve(&mut dz, 0.0)
+        };
+        self.dz = dz;
+        if solved.is_err() {
+            let finite = self.res.iter().all(|r| r.is_finite());
+            return Err(SimError::SolverFailed {
+                t: self.time,
+                reason: format!(
+                    "Newton matrix not positive definite even with a shift (iteration {it}, residual finite: {finite}, stretch {:.2e})",
+                    self.max_stretch()
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    /// Size of the Newton update: the largest node displacement relative to
+    /// the rod length (Euclidean, so the test does not depend on the
+    /// orientation of the scene) or twist update (rad).
+    fn update_size(&self) -> f64 {
+        let mut size: f64 = 0.0;
+        for k in 2..self.n {
+            let f = 4 * k - CLAMPED_DOFS;
+            let dx = (self.dz[f].powi(2) + self.dz[f + 1].powi(2) + self.dz[f + 2].powi(2)).sqrt();
+            size = size.max(dx / self.length);
+            if f + 3 < self.dz.len() {
+                size = size.max(self.dz[f + 3].abs());
+            }
+        }
+        size
+    }
+
+    /// Backtracking line search (Armijo) on the incremental potential along
+    /// `self.dz` from `base` (potential `phi`, magnitude `mag`, directional
+    /// derivative `slope`), skipped when the predicted decrease is at the
+    /// rounding level of the potential (there the full Newton step is the
+    /// right one). Returns the step fraction with the potential and magnitude
+    /// there, fully evaluated, or `None` if nothing decreases.
+    fn line_search(&mut self, base: &[f64], phi: f64, mag: f64, slope: f64) -> Option<(f64, f64, f64)> {
+        let noise = 1e-13 * mag;
+        let search = slope < -1e3 * noise;
+        // Step control in contact scenes: the largest fraction of the
+        // Newton step that moves no node too far (see `step_cap`).
+        let mut alpha = if self.vessel.is_some() { self.step_cap() } else { 1.0 };
+        let alpha_min = 1e-3 * alpha;
+        self.set_free(base, alpha);
+        let (mut phi_new, mut mag_new) = self.eval(Eval::Full);
+        let mut backtracked = false;
+        let armijo = |alpha: f64, phi_new: f64| phi_new <= phi + 1e-4 * alpha * slope + noise;
+        while search && !armijo(alpha, phi_new) && alpha > alpha_min {
+            alpha *= 0.5;
+            self.set_free(base, alpha);
+            (phi_new, mag_new) = self.eval(Eval::Energy);
+            backtracked = true;
+        }
+        if search && !armijo(alpha, phi_new) {
+            return None;
+        }
+        if backtracked {
+            (phi_new, mag_new) = self.eval(Eval::Full);
+        }
+        Some((alpha, phi_new, mag_new))
+    }
+
+    /// Accept the iterate: re-anchor the frame transport there, refresh the
+    /// dead loads and move their change into `phi` and the residual.
+    fn accept_iterate(&mut self, phi: &mut f64, mag: &mut f64, phi_new: f64, mag_new: f64) {
+        self.anchor_frames();
+        *phi = phi_new;
+        *mag = mag_new;
+        std::mem::swap(&mut self.fext, &mut self.fext_prev);
+        self.external_forces();
+        for g in 0..self.q.len() {
+            let d = self.fext[g] - self.fext_prev[g];
+            if d != 0.0 {
+                *phi -= d * (self.q[g] - self.q0[g]);
+                if g >= CLAMPED_DOFS {
+                    self.res[g - CLAMPED_DOFS] -= d;
                 }
             }
         }
-        Ok(stats)
     }
 
     /// Advance by `dt` (s) with the clamp at `cmd` at the end of the step.
@@ -162,12 +189,7 @@ impl DerRod {
     /// largest final update and `converged` only if every substep converged;
     /// [`DerRod::last_substeps`] tells how many substeps were taken.
     pub fn step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
-        if !(dt > 0.0 && dt.is_finite()) {
-            return Err(SimError::SolverFailed {
-                t: self.time,
-                reason: format!("time step must be > 0 s, got {dt}"),
-            });
-        }
+        SimError::check_dt(self.time, dt)?;
         let c0 = self.prev_cmd;
         let mut acc = StepStats {
             iterations: 0,

@@ -91,3 +91,13 @@ pub fn truth_cube_body(strain: f64, n: usize) -> surgbench_core::TissueBody {
         .collect();
     b
 }
+
+/// The truth-cube scenario's cosine load ramp at time `t` (s) over `ramp`
+/// (s): `0.5 (1 - cos(pi t / ramp))`, then 1.
+pub fn cosine_ramp(t: f64, ramp: f64) -> f64 {
+    if t >= ramp {
+        1.0
+    } else {
+        0.5 * (1.0 - (std::f64::consts::PI * t / ramp).cos())
+    }
+}

@@ -7,12 +7,7 @@ use surgbench_core::{DeviceCommand, EnergyProbe, Model, Observation, SimError, S
 
 impl Model for MeshlessTissue {
     fn step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
-        if !(dt > 0.0 && dt.is_finite()) {
-            return Err(SimError::SolverFailed {
-                t: self.time,
-                reason: format!("time step must be > 0 s, got {dt}"),
-            });
-        }
+        SimError::check_dt(self.time, dt)?;
         let n = self.x.len();
         let xn = self.x.clone();
         self.load_scale = cmd.load;

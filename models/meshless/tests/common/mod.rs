@@ -4,6 +4,7 @@
 use surgbench_core::{
     Body, ControlKey, ControlTimeline, Scene, Settle, SolidMaterial, TetMesh, TissueBody, Vec3, mesh,
 };
+use surgbench_meshless::{PointElastic, StateCache};
 
 /// xorshift64* in [-0.5, 0.5).
 pub struct Rng(pub u64);
@@ -79,4 +80,32 @@ pub fn ramp(ramp: f64) -> ControlTimeline {
     ControlTimeline {
         keys: vec![ControlKey::load(0.0, 0.0), ControlKey::load(ramp, 1.0)],
     }
+}
+
+/// Node volumes: a quarter of each tet around the node (m^3).
+pub fn volumes(m: &TetMesh) -> Vec<f64> {
+    let mut v = vec![0.0; m.nodes.len()];
+    for t in &m.tets {
+        let p = t.map(|i| m.nodes[i]);
+        let vol = mesh::tet_volume(&p[0], &p[1], &p[2], &p[3]).abs();
+        for &i in t {
+            v[i] += vol / 4.0;
+        }
+    }
+    v
+}
+
+/// The elastic forces of `el` at positions `x` (N).
+pub fn forces(el: &PointElastic, x: &[Vec3]) -> Vec<Vec3> {
+    let mut c = StateCache::default();
+    el.prepare(x, &mut c);
+    let mut f = vec![Vec3::zeros(); x.len()];
+    el.add_forces(x, &c, &mut f);
+    f
+}
+
+/// The elastic plus hourglass energy of `el` at positions `x` (J).
+pub fn total(el: &PointElastic, x: &[Vec3]) -> f64 {
+    let (u, hg) = el.energy(x);
+    u + hg
 }

@@ -47,14 +47,12 @@ use std::sync::Arc;
 
 use nalgebra::{Quaternion, UnitQuaternion};
 use surgbench_core::band::BandMatrix;
-use surgbench_core::beam::first_bending_frequency;
 use surgbench_core::flow::FlowField;
-use surgbench_core::{
-    BuildError, Capability, Choice, DeviceCommand, Environment, Family, Fidelity, FidelityKey, Iso3, LoadRamp, Mat3,
-    Model, ModelFactory, Scene, Sdf, Settings, Unsupported, Vec3,
-};
+use surgbench_core::{BuildError, DeviceCommand, Environment, Iso3, LoadRamp, Mat3, Sdf, Settings, Vec3};
 
 type Quat = Quaternion<f64>;
+
+pub use crate::factory::{PbdRodFactory, ROD_KEYS};
 
 mod build;
 mod model;
@@ -69,26 +67,6 @@ use quat::*;
 /// 1-Lipschitz grid ([`surgbench_core::sdf::VoxelSdf`]) has each gradient
 /// component bounded by 1, so `|grad| <= sqrt(3) < 2`.
 pub const SDF_LIPSCHITZ_BOUND: f64 = 2.0;
-
-/// Fidelity extras of `pbd-rod`.
-pub const ROD_KEYS: &[FidelityKey] = &[
-    FidelityKey::number("substeps", "XPBD substeps per step (integer >= 1; default 1)"),
-    FidelityKey::number(
-        "damping",
-        "velocity damping rate c (1/s): v <- v / (1 + c h) each substep; default 0, or 2 omega_1 (critical for the first bending mode) in static scenes",
-    ),
-    FidelityKey::choice(
-        "solver",
-        "constraint solver per iteration",
-        &[
-            Choice::new("gauss-seidel", "non-linear Gauss-Seidel over the constraints (default)"),
-            Choice::new(
-                "direct",
-                "all rod constraints linearised and solved at once by banded Cholesky (Deul et al. 2018)",
-            ),
-        ],
-    ),
-];
 
 /// The names of `solver`, as rod solvers.
 const ROD_SOLVERS: &[(&str, RodSolver)] = &[("gauss-seidel", RodSolver::GaussSeidel), ("direct", RodSolver::Direct)];
@@ -111,96 +89,6 @@ pub enum RodSolver {
     /// `(J W J^T + alpha~) dlambda = -(C + alpha~ lambda)` is solved exactly;
     /// the chain makes it block-banded, so a banded Cholesky costs `O(n)`.
     Direct,
-}
-
-/// Factory for the Cosserat-PBD rod (`pbd-rod`).
-#[derive(Debug, Clone, Copy, Default)]
-pub struct PbdRodFactory;
-
-const ROD_CAPS: &[Capability] = &[
-    Capability::Rod,
-    Capability::Twist,
-    Capability::TipForce,
-    Capability::LoadRamp,
-    Capability::VaryingProperties,
-    Capability::RestCurvature,
-    Capability::Insertion,
-    Capability::VesselContact,
-    Capability::Friction,
-    Capability::Flow,
-    Capability::MovingVessel,
-    Capability::HapticForce,
-];
-
-impl ModelFactory for PbdRodFactory {
-    fn id(&self) -> &'static str {
-        "pbd-rod"
-    }
-    fn description(&self) -> &'static str {
-        "Cosserat rod in XPBD (Kugelstadt & Schömer 2016): particles + quaternions, SDF contact with position-level friction"
-    }
-    fn family(&self) -> Family {
-        Family::Rod
-    }
-    fn capabilities(&self) -> &'static [Capability] {
-        ROD_CAPS
-    }
-    fn fidelity_keys(&self) -> &'static [FidelityKey] {
-        ROD_KEYS
-    }
-    fn default_fidelity(&self, scene: &Scene) -> Fidelity {
-        let mut f = Fidelity {
-            segments: Some(50),
-            mesh_level: None,
-            dt: Some(1e-3),
-            iterations: Some(20),
-            extras: Default::default(),
-        };
-        f.extras.insert("substeps".into(), 4.0.into());
-        // A dead tip load enters the prediction as h^2 F / m_tip, which on a
-        // light tip particle can be many segment lengths; the chain's
-        // Gauss-Seidel then cannot carry it back to the clamp within the
-        // substep and the wire over-stretches (capstan: 1 N on 2.2e-6 kg at
-        // h = 0.25 ms is 29 mm against 1.1 mm segments). Default substeps keep
-        // that offset below a tenth of a segment at the default segment count
-        // and time step, h <= l sqrt(0.1 rho A / (2 |F|)) (measured: capstan
-        // at 40 segments runs with 64 substeps, tension ratio within 1.3% of
-        // exp(mu theta), stretch 1.3% = T / EA; it trips the stretch watchdog
-        // with 4).
-        if let (Some(rod), Some(segments), Some(dt)) = (scene.rods().next(), f.segments, f.dt) {
-            let fmax = rod.tip_force.norm();
-            let s = rod.section_at(rod.length);
-            let l = rod.length / segments as f64;
-            if fmax > 0.0 {
-                let h_max = l * (0.1 * s.density * s.area() / (2.0 * fmax)).sqrt();
-                let ns = (dt / h_max).ceil().clamp(4.0, 1e4);
-                f.extras.insert("substeps".into(), ns.into());
-            }
-        }
-        // Static scenes are run to equilibrium with the model's own damping:
-        // critical damping of the first cantilever bending mode,
-        // c = 2 omega_1 (`surgbench_core::beam::first_bending_frequency`).
-        if scene.settle.is_some()
-            && let Some(rod) = scene.rods().next()
-        {
-            let w1 = first_bending_frequency(&rod.sections[0], rod.length);
-            f.extras.insert("damping".into(), (2.0 * w1).into());
-        }
-        f
-    }
-    fn check(&self, scene: &Scene) -> Result<(), Unsupported> {
-        surgbench_core::model::check_capabilities(self.id(), self.capabilities(), scene)?;
-        match scene.rods().count() {
-            1 => Ok(()),
-            0 => Err(Unsupported::new("pbd-rod needs a rod in the scene")),
-            k => Err(Unsupported::new(format!(
-                "pbd-rod simulates one rod, the scene has {k}"
-            ))),
-        }
-    }
-    fn build_resolved(&self, scene: &Scene, settings: &Settings) -> Result<Box<dyn Model>, BuildError> {
-        Ok(Box::new(PbdRod::with_settings(scene, settings)?))
-    }
 }
 
 /// Resolved rod knobs.
@@ -433,7 +321,7 @@ impl PbdRod {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use surgbench_core::RodBody;
+    use surgbench_core::{Fidelity, RodBody, Scene};
 
     use crate::testrng::{Rng, quat};
 

@@ -49,12 +49,7 @@ impl PbdRod {
 
 impl Model for PbdRod {
     fn step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
-        if !(dt > 0.0 && dt.is_finite()) {
-            return Err(SimError::SolverFailed {
-                t: self.time,
-                reason: format!("time step must be > 0 s, got {dt}"),
-            });
-        }
+        SimError::check_dt(self.time, dt)?;
         let ns = self.set.substeps;
         let h = dt / ns as f64;
         let a = self.last_cmd;

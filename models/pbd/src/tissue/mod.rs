@@ -81,9 +81,11 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
 use surgbench_core::{
-    BuildError, Capability, DeviceCommand, EnergyObs, Family, Fidelity, FidelityKey, Model, ModelFactory, Observation,
-    Scene, Settings, SimError, StepStats, TissueBody, TissueObs, Unsupported, Vec3,
+    BuildError, DeviceCommand, EnergyObs, Model, Observation, Settings, SimError, StepStats, TissueBody, TissueObs,
+    Vec3,
 };
+
+pub use crate::factory::{PbdTissueFactory, TISSUE_KEYS};
 
 mod build;
 mod solve;
@@ -115,81 +117,6 @@ pub fn project_volume(p: &mut [Vec3; 4], w: [f64; 4], rest: f64, alpha_tilde: f6
         p[k] += g[k] * (w[k] * dl);
     }
     num.abs()
-}
-
-/// Fidelity extras of `pbd-tissue`.
-pub const TISSUE_KEYS: &[FidelityKey] = &[
-    FidelityKey::number("substeps", "XPBD substeps per step (integer >= 1; default 1)"),
-    FidelityKey::number(
-        "damping",
-        "velocity damping rate c (1/s): v <- v / (1 + c h) each substep; default 0",
-    ),
-    FidelityKey::number("hash_box", "local activation box edge d (m); 0 = off (default)"),
-    FidelityKey::number("hash_span", "box expansion span (m); default d/3"),
-    FidelityKey::number(
-        "threads",
-        "worker threads of the constraint solve (integer >= 1; default min(2, available cores)); results are bit-identical for any count",
-    ),
-];
-
-/// Factory for the tetrahedral XPBD tissue (`pbd-tissue`).
-#[derive(Debug, Clone, Copy, Default)]
-pub struct PbdTissueFactory;
-
-const TISSUE_CAPS: &[Capability] = &[
-    Capability::Tissue,
-    Capability::HapticForce,
-    Capability::RollerConstraint,
-    Capability::TissueContact,
-];
-
-impl ModelFactory for PbdTissueFactory {
-    fn id(&self) -> &'static str {
-        "pbd-tissue"
-    }
-    fn description(&self) -> &'static str {
-        "Tetrahedral XPBD tissue: edge-distance and volume constraints, optional hash-box local activation"
-    }
-    fn family(&self) -> Family {
-        Family::Tissue
-    }
-    fn capabilities(&self) -> &'static [Capability] {
-        TISSUE_CAPS
-    }
-    fn fidelity_keys(&self) -> &'static [FidelityKey] {
-        TISSUE_KEYS
-    }
-    fn default_fidelity(&self, _scene: &Scene) -> Fidelity {
-        Fidelity {
-            segments: None,
-            mesh_level: None,
-            dt: Some(1e-3),
-            iterations: Some(10),
-            extras: Default::default(),
-        }
-    }
-    fn check(&self, scene: &Scene) -> Result<(), Unsupported> {
-        surgbench_core::model::check_capabilities(self.id(), self.capabilities(), scene)?;
-        let tissues: Vec<&TissueBody> = scene.tissues().collect();
-        match tissues.len() {
-            1 => {}
-            0 => return Err(Unsupported::new("pbd-tissue needs a tissue body in the scene")),
-            k => {
-                return Err(Unsupported::new(format!(
-                    "pbd-tissue simulates one tissue, the scene has {k}"
-                )));
-            }
-        }
-        if tissues[0].material.poisson_ratio < 0.0 {
-            return Err(Unsupported::new(
-                "pbd-tissue maps nu to the volume compliance V0/lambda; nu < 0 gives lambda < 0",
-            ));
-        }
-        Ok(())
-    }
-    fn build_resolved(&self, scene: &Scene, settings: &Settings) -> Result<Box<dyn Model>, BuildError> {
-        Ok(Box::new(PbdTissue::with_settings(scene, settings)?))
-    }
 }
 
 /// Resolved tissue knobs.
@@ -704,12 +631,7 @@ impl PbdTissue {
 
 impl Model for PbdTissue {
     fn step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
-        if !(dt > 0.0 && dt.is_finite()) {
-            return Err(SimError::SolverFailed {
-                t: self.time,
-                reason: format!("time step must be > 0 s, got {dt}"),
-            });
-        }
+        SimError::check_dt(self.time, dt)?;
         let ns = self.set.substeps;
         let h = dt / ns as f64;
         let a = self.last_ins;

@@ -1,0 +1,106 @@
+//! The harness factory of the meshless tissue: [`MeshlessFactory`]
+//! (`id = "meshless"`), its capabilities, fidelity keys and defaults.
+
+use crate::model::MeshlessTissue;
+use surgbench_core::{
+    BuildError, Capability, Choice, Family, Fidelity, FidelityKey, Model, ModelFactory, Scene, Settings, Unsupported,
+};
+
+/// Fidelity extras of `meshless` (besides `dt` and `iterations` = PBD sweeps).
+pub const MESHLESS_KEYS: &[FidelityKey] = &[
+    FidelityKey::number(
+        "support_factor",
+        "poly6 support radius h_i over node i's local edge length (mean edge of the tets around it; default 1.5)",
+    ),
+    FidelityKey::number(
+        "mls_factor",
+        "MLS surface-mapping radius over the local edge length of the surface node (default 2.0)",
+    ),
+    FidelityKey::number(
+        "stabilization",
+        "hourglass-control stiffness over Young's modulus, gamma (default 0.1; 0 = off)",
+    ),
+    FidelityKey::choice(
+        "integrator",
+        "time integrator",
+        &[
+            Choice::new("symplectic-euler", "symplectic (semi-implicit) Euler, explicit"),
+            Choice::new("backward-euler", "backward Euler by Newton-CG (default dynamic)"),
+            Choice::new(
+                "quasi-static",
+                "static equilibrium every step by Newton-CG (default when the scene settles)",
+            ),
+        ],
+    ),
+    FidelityKey::number(
+        "damping",
+        "mass-proportional damping rate c (1/s); default 0, explicit on settling scenes 2 omega_1",
+    ),
+    FidelityKey::switch(
+        "pbd",
+        "1 = add the seed's PBD corrections (edge stretch + virtual-tet energy), 0 = off (default)",
+    ),
+    FidelityKey::number("pbd_stretch", "PBD stretch stiffness in [0, 1] (default 0.5)"),
+    FidelityKey::number("pbd_tet", "PBD virtual-tet energy stiffness in [0, 1] (default 0.5)"),
+    FidelityKey::number(
+        "support_floor",
+        "radius floor over the longest mesh edge at the node, applied where support_factor x the local edge gives a nearly flat neighbourhood (rcond < 1e-3) (default 1.05: the support holds the node's mesh star, which spans 3D; 0 = off)",
+    ),
+    FidelityKey::number(
+        "contact_stiffness",
+        "sphere contact penalty factor kappa: node stiffness kappa E/(1-nu^2) sqrt(node boundary area) (default 100; penetration ~ contact strain / kappa of the node spacing)",
+    ),
+];
+
+/// Factory of the point-primitive (meshless) tissue, id `meshless`.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct MeshlessFactory;
+
+const CAPS: &[Capability] = &[
+    Capability::Tissue,
+    Capability::PressureLoad,
+    Capability::RollerConstraint,
+    Capability::HapticForce,
+    Capability::TissueContact,
+];
+
+impl ModelFactory for MeshlessFactory {
+    fn id(&self) -> &'static str {
+        "meshless"
+    }
+    fn description(&self) -> &'static str {
+        "Point-primitive tissue: MLS deformation gradients (Müller 2004), StVK, hourglass control, optional PBD corrections, MLS surface mapping"
+    }
+    fn family(&self) -> Family {
+        Family::Tissue
+    }
+    fn capabilities(&self) -> &'static [Capability] {
+        CAPS
+    }
+    fn fidelity_keys(&self) -> &'static [FidelityKey] {
+        MESHLESS_KEYS
+    }
+    fn default_fidelity(&self, _scene: &Scene) -> Fidelity {
+        Fidelity {
+            dt: Some(1e-3),
+            iterations: Some(5),
+            ..Default::default()
+        }
+    }
+    fn check(&self, scene: &Scene) -> Result<(), Unsupported> {
+        surgbench_core::model::check_capabilities(self.id(), self.capabilities(), scene)?;
+        match scene.tissues().count() {
+            1 => {}
+            0 => return Err(Unsupported::new("meshless needs a tissue body in the scene")),
+            k => {
+                return Err(Unsupported::new(format!(
+                    "meshless simulates one tissue, the scene has {k}"
+                )));
+            }
+        }
+        Ok(())
+    }
+    fn build_resolved(&self, scene: &Scene, settings: &Settings) -> Result<Box<dyn Model>, BuildError> {
+        Ok(Box::new(MeshlessTissue::with_settings(scene, settings)?))
+    }
+}
