@@ -201,6 +201,27 @@ impl Settings {
         self.number(name).unwrap_or(default)
     }
 
+    /// The numeric extra `name` as a whole number in `range`, or `default`
+    /// when unset; a fraction or a value outside is a [`BuildError`] naming
+    /// the key (thread counts, iteration limits).
+    pub fn whole_in(
+        &self,
+        name: &str,
+        default: usize,
+        range: std::ops::RangeInclusive<usize>,
+    ) -> Result<usize, BuildError> {
+        let v = self.number_or(name, default as f64);
+        let (lo, hi) = (*range.start(), *range.end());
+        if v.fract() == 0.0 && v >= lo as f64 && v <= hi as f64 {
+            Ok(v as usize)
+        } else {
+            Err(BuildError::bad(
+                name,
+                format!("must be an integer in {lo}..={hi}, got {v}"),
+            ))
+        }
+    }
+
     /// The switch `name` (0 off, 1 on), or `default` when unset.
     pub fn switch(&self, name: &str, default: bool) -> bool {
         self.number(name).map_or(default, |v| v == 1.0)

@@ -123,13 +123,7 @@ impl FemFactory {
                 format!("must be in (0, 1), got {reuse_tol}"),
             ));
         }
-        let threads = s.number_or("threads", 2.0);
-        if !(1.0..=64.0).contains(&threads) || threads.fract() != 0.0 {
-            return Err(BuildError::bad(
-                "threads",
-                format!("must be an integer in 1..=64, got {threads}"),
-            ));
-        }
+        let threads = s.whole_in("threads", 2, 1..=64)?;
         let contact_stiffness = s.number_or("contact_stiffness", DEFAULT_KAPPA);
         if !(contact_stiffness > 0.0 && contact_stiffness.is_finite()) {
             return Err(BuildError::bad(
@@ -150,7 +144,7 @@ impl FemFactory {
             rayleigh_stiffness: nonneg("rayleigh_stiffness")?,
             iterations: full.iterations.unwrap_or(1),
             tol: 1e-9,
-            threads: threads as usize,
+            threads,
         };
         Ok((p, full.dt.unwrap_or(1e-3)))
     }

@@ -2,7 +2,7 @@
 
 use crate::model::NeedleModel;
 use surgbench_core::{
-    BuildError, Capability, Family, Fidelity, Model, ModelFactory, Scene, Settings, Unsupported,
+    BuildError, Capability, Family, Fidelity, FidelityKey, Model, ModelFactory, Scene, Settings, Unsupported,
     model::check_capabilities,
 };
 use surgbench_der::DerRod;
@@ -12,6 +12,12 @@ use surgbench_fem::{DynParams, FemModel, Integrator};
 pub const DEFAULT_SEGMENTS: usize = 40;
 /// Time step (s) when the fidelity leaves `dt` unset: the seed's 1 kHz haptic rate.
 pub const DEFAULT_DT: f64 = 1e-3;
+
+/// The needle's settings beyond the common fidelity knobs.
+const KEYS: &[FidelityKey] = &[FidelityKey::number(
+    "threads",
+    "tissue assembly threads (default 2); results are identical for any count",
+)];
 
 /// The `needle` model: FEM tissue + DER needle, embedded coupling points,
 /// stick-slip friction by the seed's LCP.
@@ -35,6 +41,9 @@ impl ModelFactory for NeedleFactory {
             Capability::Insertion,
             Capability::PressureLoad,
         ]
+    }
+    fn fidelity_keys(&self) -> &'static [FidelityKey] {
+        KEYS
     }
     /// 40 needle edges, `dt = 1 ms`, one Newton iteration per step (the
     /// seed's linearly implicit step).
@@ -81,6 +90,7 @@ impl ModelFactory for NeedleFactory {
         // Euler the run completes, 1.03 LCP trials per step.
         let params = DynParams {
             integrator: Integrator::BackwardEuler,
+            threads: settings.whole_in("threads", 2, 1..=64)?,
             ..DynParams::default()
         };
         let fem =

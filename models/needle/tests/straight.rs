@@ -25,10 +25,15 @@ struct Sample {
 
 /// Insert 12 mm at `V`, hold 0.3 s, retract 5 mm at `V`.
 fn run(cells: [usize; 3], segments: usize) -> Vec<Sample> {
+    run_threads(cells, segments, 2)
+}
+
+/// [`run`] with the tissue assembled on `threads` threads.
+fn run_threads(cells: [usize; 3], segments: usize, threads: usize) -> Vec<Sample> {
     let x1 = 12e-3 + 1e-3;
     let feed = [(0.0, 0.0), (x1 / V, x1), (x1 / V + 0.3, x1), (x1 / V + 0.8, x1 - 5e-3)];
     let scene = common::scene(&feed, cells, F_PERLEN, F_CUT);
-    let f = Fidelity::parse_pairs(&[format!("segments={segments}")]).unwrap();
+    let f = Fidelity::parse_pairs(&[format!("segments={segments}"), format!("threads={threads}")]).unwrap();
     let mut m = NeedleFactory.build(&scene, &f).unwrap();
     let dt = m.dt();
     let n = (scene.duration / dt).round() as usize;
@@ -102,9 +107,16 @@ fn base_force_follows_the_closed_form_while_sliding() {
 }
 
 #[test]
-fn reruns_are_bit_identical() {
-    let a = run([4, 2, 2], 20);
-    let b = run([4, 2, 2], 20);
+fn reruns_are_bit_identical_at_1_and_2_threads() {
+    let a = run_threads([4, 2, 2], 20, 1);
+    let b = run_threads([4, 2, 2], 20, 2);
+    let c = run_threads([4, 2, 2], 20, 2);
+    assert_eq!(a.len(), b.len());
+    assert!(
+        b.iter()
+            .zip(&c)
+            .all(|(x, y)| x.push.to_bits() == y.push.to_bits() && x.d.to_bits() == y.d.to_bits())
+    );
     assert!(
         a.iter()
             .zip(&b)
