@@ -311,25 +311,33 @@ impl NeedleModel {
     }
 
     /// The Delassus matrix `W = J_n H^{-1} J_n^T + J_t A^{-1} J_t^T` in frame
-    /// components: one needle and one tissue solve per point and axis.
+    /// components: one needle solve per point and axis, and the tissue's
+    /// solves for every point and axis in one blocked solve.
     fn delassus(&mut self, geo: &[Geometry]) -> DMatrix<f64> {
         let m = geo.len();
         let (nf, nt) = (self.rod.free_dofs(), 3 * self.fem.node_masses().len());
         let mut w = DMatrix::zeros(3 * m, 3 * m);
         let mut unused = Vec3::zeros();
+        // Column 3 i + d: the unit force along point i's frame axis d.
+        let mut yts = vec![0.0; nt * 3 * m];
+        for (i, gi) in geo.iter().enumerate() {
+            for d in 0..3 {
+                let yt = &mut yts[(3 * i + d) * nt..(3 * i + d + 1) * nt];
+                for a in 0..4 {
+                    (0..3).for_each(|c| yt[3 * gi.tissue[a] + c] += gi.w[a] * gi.frame[d][c]);
+                }
+            }
+        }
+        self.fem.solve_linear_many(&mut yts, 3 * m);
         for (i, gi) in geo.iter().enumerate() {
             for d in 0..3 {
                 let e = gi.frame[d];
                 let mut yn = vec![0.0; nf];
                 self.add_needle(&gi.needle, &e, &mut yn, &mut unused);
                 self.rod.solve_linear(&mut yn);
-                let mut yt = vec![0.0; nt];
-                for a in 0..4 {
-                    (0..3).for_each(|c| yt[3 * gi.tissue[a] + c] += gi.w[a] * e[c]);
-                }
-                self.fem.solve_linear(&mut yt);
+                let yt = &yts[(3 * i + d) * nt..(3 * i + d + 1) * nt];
                 for (j, gj) in geo.iter().enumerate() {
-                    let u = self.needle_motion(&gj.needle, &yn) + Self::tissue_motion(gj, &yt);
+                    let u = self.needle_motion(&gj.needle, &yn) + Self::tissue_motion(gj, yt);
                     for r in 0..3 {
                         w[(3 * j + r, 3 * i + d)] = gj.frame[r].dot(&u);
                     }

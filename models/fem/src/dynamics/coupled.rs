@@ -76,6 +76,12 @@ impl FemModel {
         self.sys.solve_cholesky(b);
     }
 
+    /// [`Self::solve_linear`] for `k` right-hand sides at once (`b`: `k`
+    /// vectors of `3 * nodes` entries back to back).
+    pub fn solve_linear_many(&mut self, b: &mut [f64], k: usize) {
+        self.sys.solve_cholesky_many(b, k);
+    }
+
     /// Whether DOF `d` (`3 * node + axis`) is free.
     pub fn is_free(&self, d: usize) -> bool {
         self.sys.free[d]
