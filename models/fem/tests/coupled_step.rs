@@ -2,19 +2,16 @@
 //! `solve_linear`, `solve_linear_many`), which the needle model uses for its
 //! Schur complement.
 
-use surgbench_core::rng::SplitMix64;
-use surgbench_core::{SolidMaterial, TissueBody, Vec3, mesh};
+mod common;
+
+use common::SplitMix;
+use surgbench_core::{TissueBody, Vec3, mesh};
 use surgbench_fem::{DynParams, FemModel, Integrator};
 
 #[test]
 fn a_blocked_solve_matches_single_solves() {
     let m = mesh::block_mirrored(Vec3::new(0.02, 0.01, 0.01), [4, 2, 2]);
-    let material = SolidMaterial {
-        youngs_modulus: 14.8e3,
-        poisson_ratio: 0.475,
-        density: 1000.0,
-    };
-    let mut body = TissueBody::new(m.clone(), material);
+    let mut body = TissueBody::new(m.clone(), common::tissue(0.475));
     body.fixed_nodes = mesh::nodes_on_plane(&m, 0, 0.02, 1e-12);
     let params = DynParams {
         integrator: Integrator::BackwardEuler,
@@ -23,7 +20,7 @@ fn a_blocked_solve_matches_single_solves() {
     let mut fem = FemModel::new(&body, Vec3::zeros(), 1e-3, params).unwrap();
     let _step = fem.begin_linear_step(1e-3, 0.0).unwrap();
     let (n, k) = (3 * m.nodes.len(), 7);
-    let mut rng = SplitMix64(17);
+    let mut rng = SplitMix(17);
     let b: Vec<f64> = (0..n * k).map(|_| rng.signed()).collect();
     let mut many = b.clone();
     fem.solve_linear_many(&mut many, k);
