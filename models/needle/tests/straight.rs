@@ -23,7 +23,7 @@ struct Sample {
     points: f64,
 }
 
-/// Insert 12 mm at `V`, hold 0.3 s, retract 5 mm at `V`.
+/// Insert 12 mm at `V`, hold 0.3 s, retract 10 mm at `V`.
 fn run(cells: [usize; 3], segments: usize) -> Vec<Sample> {
     run_threads(cells, segments, 2)
 }
@@ -31,7 +31,7 @@ fn run(cells: [usize; 3], segments: usize) -> Vec<Sample> {
 /// [`run`] with the tissue assembled on `threads` threads.
 fn run_threads(cells: [usize; 3], segments: usize, threads: usize) -> Vec<Sample> {
     let x1 = 12e-3 + 1e-3;
-    let feed = [(0.0, 0.0), (x1 / V, x1), (x1 / V + 0.3, x1), (x1 / V + 0.8, x1 - 5e-3)];
+    let feed = [(0.0, 0.0), (x1 / V, x1), (x1 / V + 0.3, x1), (x1 / V + 1.3, x1 - 10e-3)];
     let scene = common::scene(&feed, cells, F_PERLEN, F_CUT);
     let f = Fidelity::parse_pairs(&[format!("segments={segments}"), format!("threads={threads}")]).unwrap();
     let mut m = NeedleFactory.build(&scene, &f).unwrap();
@@ -76,12 +76,14 @@ fn base_force_follows_the_closed_form_while_sliding() {
             worst_out = worst_out.max((x.push - closed).abs() / closed.abs());
         }
         // Holding and retracting, the hand force never exceeds what the
-        // friction bounds (and, pushing, the uncut tip) can hold; relative
-        // slack: the LCP's check tolerance.
+        // friction bounds (and, pushing, the uncut tip) can hold. Slack: the
+        // LCP's check tolerance, and the friction of the length the needle
+        // leaves in one step of 1 ms (the bounds use the step's starting d,
+        // the sample its end).
         if x.t > t_in + 1.5e-3 {
             let bound = F_PERLEN * x.d + if x.push > 0.0 { F_CUT } else { 0.0 };
             assert!(
-                x.push.abs() <= bound * (1.0 + 1e-3),
+                x.push.abs() <= bound * (1.0 + 1e-3) + F_PERLEN * V * 1e-3,
                 "t = {} s: {} N past {} N",
                 x.t,
                 x.push,
@@ -98,12 +100,11 @@ fn base_force_follows_the_closed_form_while_sliding() {
     // Issue 17's bound; measured 0.26 % (the needle's axial inertia and the
     // one-step linearization of its clamp reaction).
     assert!(worst_in < 0.02, "insertion error {worst_in}");
-    // Retracting 5 mm, some point near the entry still sticks at every step
-    // (measured: no step with all points sliding back), so the closed form
-    // is checked only if such steps occur; the bound above holds throughout.
-    if sliding_out > 0 {
-        assert!(worst_out < 0.02, "retraction error {worst_out}");
-    }
+    // Retracting, the tissue first follows the needle back, releasing the
+    // compression the insertion stored (~6 mm of the 10 mm stroke); then
+    // every point slides back (measured: 413 steps, worst error 0.33 %).
+    assert!(sliding_out > 100, "{sliding_out} steps sliding back");
+    assert!(worst_out < 0.02, "retraction error {worst_out}");
 }
 
 #[test]

@@ -22,7 +22,7 @@ params! {
         insertion_speed: ParamSpec::new("insertion_speed", 0.01, "m/s", Range::Positive, "speed of the base while inserting and retracting"),
         depth: ParamSpec::new("depth", 0.012, "m", Range::Positive, "final tip depth below the entry face"),
         hold_time: ParamSpec::new("hold_time", 0.3, "s", Range::NonNegative, "time held at depth"),
-        retraction: ParamSpec::new("retraction", 0.005, "m", Range::NonNegative, "distance retracted after the hold"),
+        retraction: ParamSpec::new("retraction", 0.01, "m", Range::NonNegative, "distance retracted after the hold"),
         tip_gap: ParamSpec::new("tip_gap", 0.001, "m", Range::Positive, "tip distance outside the entry face at t = 0"),
         friction_per_length: ParamSpec::new("friction_per_length", 20.0, "N/m", Range::NonNegative, "Coulomb friction per length of shaft in the tissue"),
         cutting_force: ParamSpec::new("cutting_force", 0.05, "N", Range::NonNegative, "force the tip needs to cut"),
@@ -42,6 +42,13 @@ params! {
 /// points are still joining.
 const SCORE_FROM_DEPTH: f64 = 2e-3;
 
+/// Retracting, the closed form `-f_perlen d` holds once the tissue has
+/// stopped following the needle back (it first releases the compression
+/// the insertion stored: ~6 mm of the stroke at the defaults); a step
+/// counts as steady when the entry node moves slower than this fraction
+/// of the needle.
+const STEADY_ENTRY_SPEED: f64 = 0.05;
+
 /// The closed form and the phases of the timeline.
 struct StraightRef {
     f_perlen: f64,
@@ -50,6 +57,8 @@ struct StraightRef {
     entry: usize,
     t_insert: f64,
     t_hold: f64,
+    /// Insertion and retraction speed (m/s).
+    speed: f64,
 }
 
 /// Per-run sums of [`StraightRef`].
@@ -59,24 +68,34 @@ struct StraightScorer<'a> {
     worst_hold: f64,
     worst_retraction: f64,
     scored: usize,
+    /// The entry node's x (m) at the last step's time (s).
+    last_entry: Option<(f64, f64)>,
+    worst_pullout: f64,
+    pullout_scored: usize,
 }
 
 impl StraightRef {
-    /// The hand's push along +x (N) and the needle length inside the tissue
-    /// (m): tip x minus the entry node's x (the needle stays straight).
-    fn push_depth(&self, obs: &Observation) -> Option<(f64, f64)> {
+    /// The hand's push along +x (N), the needle length inside the tissue
+    /// (m: tip x minus the entry node's x, the needle stays straight) and
+    /// the entry node's x (m).
+    fn push_depth(&self, obs: &Observation) -> Option<(f64, f64, f64)> {
         let tip = obs.rods.first()?.nodes.last()?;
         let entry = obs.tissues.first()?.nodes.get(self.entry)?;
-        Some((-obs.hand_force.x, (tip.x - entry.x).max(0.0)))
+        Some((-obs.hand_force.x, (tip.x - entry.x).max(0.0), entry.x))
     }
 }
 
 impl Scorer for StraightScorer<'_> {
     fn observe_step(&mut self, obs: &Observation) {
-        let Some((push, d)) = self.r.push_depth(obs) else {
+        let Some((push, d, entry)) = self.r.push_depth(obs) else {
             return;
         };
         let (f, t) = (self.r.f_perlen, obs.time);
+        let entry_speed = self
+            .last_entry
+            .filter(|(t0, _)| t > *t0)
+            .map(|(t0, x0)| ((entry - x0) / (t - t0)).abs());
+        self.last_entry = Some((t, entry));
         if t <= self.r.t_insert && d >= SCORE_FROM_DEPTH {
             let closed = self.r.f_cut + f * d;
             self.worst_insertion = self.worst_insertion.max((push - closed).abs() / closed);
@@ -87,12 +106,16 @@ impl Scorer for StraightScorer<'_> {
         } else if t > self.r.t_hold + 1e-9 && d > 0.0 {
             let excess = (-push) / (f * d) - 1.0;
             self.worst_retraction = self.worst_retraction.max(excess);
+            if entry_speed.is_some_and(|v| v < STEADY_ENTRY_SPEED * self.r.speed) && d >= SCORE_FROM_DEPTH {
+                self.worst_pullout = self.worst_pullout.max((-push - f * d).abs() / (f * d));
+                self.pullout_scored += 1;
+            }
         }
     }
 
     fn score(&self, obs: &Observation) -> Metrics {
         let mut m = Metrics::new();
-        if let Some((push, d)) = self.r.push_depth(obs) {
+        if let Some((push, d, _)) = self.r.push_depth(obs) {
             m.insert("push_force_n".into(), push);
             m.insert("inserted_length_m".into(), d);
         }
@@ -101,6 +124,9 @@ impl Scorer for StraightScorer<'_> {
         }
         m.insert("hold_excess_rel".into(), self.worst_hold.max(0.0));
         m.insert("retraction_excess_rel".into(), self.worst_retraction.max(0.0));
+        if self.pullout_scored > 0 {
+            m.insert("retraction_error_rel".into(), self.worst_pullout);
+        }
         m
     }
 }
@@ -113,6 +139,9 @@ impl Reference for StraightRef {
             worst_hold: f64::NEG_INFINITY,
             worst_retraction: f64::NEG_INFINITY,
             scored: 0,
+            last_entry: None,
+            worst_pullout: 0.0,
+            pullout_scored: 0,
         })
     }
 }
@@ -123,7 +152,7 @@ pub const NEEDLE_STRAIGHT: Declared<StraightParams> = Declared {
         id: "needle-straight",
         description: "stiff symmetric-tip needle into a gel block at constant speed, held, retracted: base force",
         family: Family::Coupled,
-        reference: "closed form f_cut + f_perlen d once every coupling point slides (worst relative error over the insertion past 2 mm); hold and retraction within the friction bounds",
+        reference: "closed form f_cut + f_perlen d once every coupling point slides (worst relative error over the insertion past 2 mm); retracting, -f_perlen d once the tissue at the entry stands still (retraction_error_rel); hold and retraction within the friction bounds",
         primary_error: "force_error_rel",
         params: StraightParams::SPECS,
         sweep: LEVELS,
@@ -190,6 +219,7 @@ fn build(p: &StraightParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError>
         entry: block.entry,
         t_insert,
         t_hold,
+        speed: v,
     };
     Ok(ScenarioRun::new(
         scene,
