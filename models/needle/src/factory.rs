@@ -55,15 +55,11 @@ impl ModelFactory for NeedleFactory {
             ..Default::default()
         }
     }
-    /// Needle scenes only (one rod, one tissue, a needle-tissue interaction);
-    /// viscous friction is not modelled yet.
+    /// Needle scenes only (one rod, one tissue, a needle-tissue interaction).
     fn check(&self, scene: &Scene) -> Result<(), Unsupported> {
         check_capabilities(self.id(), self.capabilities(), scene)?;
-        let Some(n) = &scene.needle else {
+        if scene.needle.is_none() {
             return Err(Unsupported::new("needle runs needle-insertion scenes only"));
-        };
-        if n.viscous_friction > 0.0 {
-            return Err(Unsupported::new("needle does not model viscous shaft friction yet"));
         }
         Ok(())
     }

@@ -14,6 +14,13 @@
 //!   and the tangential gap (the slip) is `>= 0`;
 //! * DYNAMIC-: `lambda_t = +f_back` and the slip is `<= 0`.
 //!
+//! With viscous friction (seed Sec. 3.3: `eta (l_{i-1} + l_i) / 2` times the
+//! relative velocity, implicit) a sliding point also feels `-c_i` times its
+//! slip `g_t`, `c_i = eta l_i / dt`: its row becomes
+//! `(W lambda)_t + lambda_t / c_i = f_s / c_i - g_free_t` (`f_s` its Coulomb
+//! force), which adds `1 / c_i` to the diagonal and keeps the system
+//! symmetric positive definite; a stuck point does not slip and feels none.
+//!
 //! The solver guesses the states, solves the equality-constrained system of
 //! that guess exactly (dense Cholesky of the active block of `W`), checks
 //! the inequalities with the relative tolerance `tau` and flips violated
@@ -44,6 +51,9 @@ pub struct Bounds {
     pub forward: f64,
     /// Bound against the needle retracting.
     pub backward: f64,
+    /// Viscous friction per metre of slip in this step (N/m): `eta l_i / dt`
+    /// (seed Sec. 3.3); 0 for Coulomb friction alone.
+    pub viscous: f64,
 }
 
 /// The result of [`solve`].
@@ -72,18 +82,32 @@ fn solve_configuration(
     let n = g_free.len();
     let mut lambda = vec![0.0; n];
     let mut active = Vec::with_capacity(n);
+    // Sliding rows with viscous friction: (row, 1 / c_i, Coulomb force).
+    let mut viscous = Vec::new();
     for (i, s) in states.iter().enumerate() {
-        match s {
-            State::Static => active.push(3 * i),
-            State::DynamicPlus => lambda[3 * i] = -bounds[i].forward,
-            State::DynamicMinus => lambda[3 * i] = bounds[i].backward,
+        let coulomb = match s {
+            State::Static => None,
+            State::DynamicPlus => Some(-bounds[i].forward),
+            State::DynamicMinus => Some(bounds[i].backward),
+        };
+        match coulomb {
+            Some(f) if bounds[i].viscous > 0.0 => {
+                viscous.push((active.len(), 1.0 / bounds[i].viscous, f));
+                active.push(3 * i);
+            }
+            Some(f) => lambda[3 * i] = f,
+            None => active.push(3 * i),
         }
         active.extend([3 * i + 1, 3 * i + 2]);
     }
     let known = DVector::from_column_slice(&lambda);
     let wk = w * &known;
-    let a = DMatrix::from_fn(active.len(), active.len(), |r, c| w[(active[r], active[c])]);
-    let rhs = DVector::from_fn(active.len(), |r, _| -(g_free[active[r]] + wk[active[r]]));
+    let mut a = DMatrix::from_fn(active.len(), active.len(), |r, c| w[(active[r], active[c])]);
+    let mut rhs = DVector::from_fn(active.len(), |r, _| -(g_free[active[r]] + wk[active[r]]));
+    for &(r, inv_c, f) in &viscous {
+        a[(r, r)] += inv_c;
+        rhs[r] += f * inv_c;
+    }
     let sol = a.cholesky()?.solve(&rhs);
     for (r, &k) in active.iter().enumerate() {
         lambda[k] = sol[r];
@@ -226,6 +250,7 @@ mod tests {
         let b = [Bounds {
             forward: f,
             backward: f,
+            viscous: 0.0,
         }; 2];
         solve(&w, &g, &b, &[State::Static; 2], 1e-3, 10)
     }
@@ -274,6 +299,7 @@ mod tests {
         let b = [Bounds {
             forward: 0.5,
             backward: 0.5,
+            viscous: 0.0,
         }];
         let s = solve(&w, &[-0.1, 0.0, 0.0], &b, &[State::DynamicPlus], 1e-3, 10);
         assert!(s.consistent);
@@ -292,6 +318,7 @@ mod tests {
         let b = [Bounds {
             forward: 1.0,
             backward: 1.0,
+            viscous: 0.0,
         }; 2];
         let s = solve(&w, &[3.0, 0.0, 0.0, 2.0, 0.0, 0.0], &b, &[State::Static; 2], 1e-3, 10);
         assert!(s.consistent);
@@ -307,11 +334,33 @@ mod tests {
         let b = [Bounds {
             forward: 1.0,
             backward: 0.2,
+            viscous: 0.0,
         }];
         let fwd = solve(&w, &[0.5, 0.0, 0.0], &b, &[State::Static], 1e-3, 10);
         assert_eq!(fwd.states, vec![State::Static]);
         let back = solve(&w, &[-0.5, 0.0, 0.0], &b, &[State::Static], 1e-3, 10);
         assert_eq!(back.states, vec![State::DynamicMinus]);
         assert!((back.gap[0] + 0.3).abs() < 1e-15);
+    }
+
+    #[test]
+    fn viscous_friction_adds_to_the_sliding_force() {
+        // One point, unit compliance: sliding forward it feels the Coulomb
+        // force f and c times its slip g, g = g_free + lambda_t with
+        // lambda_t = -f - c g, so g = (g_free - f) / (1 + c) by hand.
+        let w = DMatrix::identity(3, 3);
+        let (g_free, f, c) = (2.0, 0.5, 3.0);
+        let b = [Bounds {
+            forward: f,
+            backward: f,
+            viscous: c,
+        }];
+        let s = solve(&w, &[g_free, 0.0, 0.0], &b, &[State::Static], 1e-3, 10);
+        assert!(s.consistent);
+        assert_eq!(s.states, vec![State::DynamicPlus]);
+        let g = (g_free - f) / (1.0 + c);
+        // Rounding only: a 1 x 1 system of O(1) entries.
+        assert!((s.gap[0] - g).abs() < 1e-15, "slip {} vs {g}", s.gap[0]);
+        assert!((s.lambda[0] - (-f - c * g)).abs() < 1e-15, "force {}", s.lambda[0]);
     }
 }

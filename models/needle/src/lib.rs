@@ -34,8 +34,10 @@
 //!   ([`model::TIP_SLACK`]); the diagnostics count such cuts and lost tips.
 //! * A needle may start inside the tissue (a channel cut before the run).
 //!
-//! Not yet (issues 17 and 18): tip remeshing, viscous shaft friction (the
-//! factory says `Unsupported`) and the seed's CG solver.
+//! * Viscous shaft friction (seed Sec. 3.3) is implicit: a sliding point's
+//!   row of the LCP gains `1 / c_i` on the diagonal ([`lcp`]).
+//!
+//! Not yet (issues 17 and 18): tip remeshing and the seed's CG solver.
 //!
 //! Units are SI: m, kg, s, N, Pa.
 

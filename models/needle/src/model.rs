@@ -174,15 +174,16 @@ impl NeedleModel {
     }
 
     /// Friction bounds of the LCP's points ([`Self::points`]): a point
-    /// holds `f_perlen (l_{i-1} + l_i) / 2` with the arclength gaps to its
-    /// neighbours (seed Eq. 9). The tip point, while it touches the tip, is
-    /// the last of them and holds the cutting force besides against the
-    /// tip's advance; the first shaft point also holds all of the shaft back
-    /// to the entry, and without a touching tip the last one holds all of it
-    /// on to the tip, so that the friction bounds sum to `f_perlen d`.
-    /// `xt`: the tissue's node positions (m).
+    /// holds `f_perlen l_i` and feels the viscous friction `eta l_i` times
+    /// its slip velocity, `l_i = (l_{i-1} + l_i) / 2` the shaft length it
+    /// stands for, half the arclength gaps to its neighbours (seed Eq. 9).
+    /// The tip point, while it touches the tip, is the last of them and
+    /// holds the cutting force besides against the tip's advance; the first
+    /// shaft point also stands for all of the shaft back to the entry, and
+    /// without a touching tip the last one for all of it on to the tip, so
+    /// that the lengths sum to `d`. `xt`: the tissue's node positions (m).
     fn bounds(&self, xt: &[Vec3]) -> Vec<Bounds> {
-        let f = self.coupling.friction_per_length;
+        let (f, eta) = (self.coupling.friction_per_length, self.coupling.viscous_friction);
         let a: Vec<f64> = self.shaft.iter().map(|p| p.arclength).collect();
         let m = a.len();
         let entry = self.entry_arclength_at(xt).unwrap_or(0.0);
@@ -191,7 +192,7 @@ impl NeedleModel {
         // The tail from the last shaft point to the tip: halved with a
         // touching tip point, whole on the last shaft point otherwise.
         let tail = |a_last: f64| (tip - a_last).max(0.0) * if touching { 1.0 } else { 2.0 };
-        let mut out: Vec<Bounds> = (0..m)
+        let mut lengths: Vec<f64> = (0..m)
             .map(|i| {
                 let prev = if i > 0 {
                     a[i] - a[i - 1]
@@ -199,19 +200,23 @@ impl NeedleModel {
                     2.0 * (a[0] - entry).max(0.0)
                 };
                 let next = if i + 1 < m { a[i + 1] - a[i] } else { tail(a[i]) };
-                let b = f * 0.5 * (prev + next);
-                Bounds {
-                    forward: b,
-                    backward: b,
-                }
+                0.5 * (prev + next)
             })
             .collect();
         if touching {
-            let shaft = f * (tip - a.last().copied().unwrap_or(entry)).max(0.0) * if m == 0 { 1.0 } else { 0.5 };
-            out.push(Bounds {
-                forward: self.coupling.cutting_force + shaft,
-                backward: shaft,
-            });
+            let last = a.last().copied().unwrap_or(entry);
+            lengths.push((tip - last).max(0.0) * if m == 0 { 1.0 } else { 0.5 });
+        }
+        let mut out: Vec<Bounds> = lengths
+            .iter()
+            .map(|l| Bounds {
+                forward: f * l,
+                backward: f * l,
+                viscous: eta * l / self.dt,
+            })
+            .collect();
+        if touching && let Some(tip) = out.last_mut() {
+            tip.forward += self.coupling.cutting_force;
         }
         out
     }
