@@ -39,6 +39,7 @@ impl ModelFactory for NeedleFactory {
             Capability::Tissue,
             Capability::NeedleTissue,
             Capability::Insertion,
+            Capability::Twist,
             Capability::PressureLoad,
         ]
     }
