@@ -33,6 +33,8 @@
 //!   deformed tet contains strictly is found within a quarter tet
 //!   ([`model::TIP_SLACK`]); the diagnostics count such cuts and lost tips.
 //! * A needle may start inside the tissue (a channel cut before the run).
+//! * The control timeline's base rotation twists the needle at its clamp
+//!   (the DER rod's torsion carries it to the tip): a bevel tip steers.
 //!
 //! * Viscous shaft friction (seed Sec. 3.3) is implicit: a sliding point's
 //!   row of the LCP gains `1 / c_i` on the diagonal ([`lcp`]).
