@@ -42,6 +42,8 @@ pub struct LcpStats {
     pub trials: usize,
     /// Most configurations in one step.
     pub max_trials: usize,
+    /// Fewest configurations in one coupled step (0 before the first).
+    pub min_trials: usize,
     /// Steps that ended without a consistent configuration.
     pub unresolved: usize,
     /// Cuts whose new channel end no tet of the deformed mesh contains
@@ -493,6 +495,11 @@ impl Model for NeedleModel {
             self.stats.steps += 1;
             self.stats.trials += sol.trials;
             self.stats.max_trials = self.stats.max_trials.max(sol.trials);
+            self.stats.min_trials = if self.stats.steps == 1 {
+                sol.trials
+            } else {
+                self.stats.min_trials.min(sol.trials)
+            };
             self.stats.unresolved += usize::from(!sol.consistent);
             stats.iterations = sol.trials as u32;
             stats.converged = sol.consistent;
@@ -542,7 +549,7 @@ impl Model for NeedleModel {
     }
 
     /// Coupling points, how many stick, and the LCP's trials (the seed's
-    /// Table 3: mean and max per coupled step, steps left unresolved).
+    /// Table 3: min, mean and max per coupled step, steps left unresolved).
     fn diagnostics(&self) -> BTreeMap<String, f64> {
         let s = self.stats;
         let mut d = BTreeMap::new();
@@ -565,6 +572,7 @@ impl Model for NeedleModel {
             },
         );
         d.insert("lcp_trials_max".into(), s.max_trials as f64);
+        d.insert("lcp_trials_min".into(), s.min_trials as f64);
         d.insert("lcp_unresolved_steps".into(), s.unresolved as f64);
         d.insert("tip_fallback_steps".into(), s.tip_fallbacks as f64);
         d.insert("tip_lost".into(), s.tip_lost as f64);
