@@ -26,6 +26,21 @@ pub struct Kinematic {
     pub cmd: DeviceCommand,
 }
 
+impl Kinematic {
+    /// A wire of free length `l0` (m) in `n` segments along `path`, with no
+    /// hand force, at time zero.
+    pub fn along(path: impl Fn(f64) -> Vec3 + Send + Sync + 'static, l0: f64, n: usize) -> Self {
+        Kinematic {
+            path: Arc::new(path),
+            hand: Arc::new(|_, _| Vec3::zeros()),
+            l0,
+            n,
+            t: 0.0,
+            cmd: DeviceCommand::default(),
+        }
+    }
+}
+
 impl Model for Kinematic {
     fn step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
         self.t += dt;
