@@ -7,7 +7,7 @@ use common::vessel::*;
 
 use std::f64::consts::PI;
 use surgbench_comparisons::scenarios::vessel::{ENTRY_S, WIRE_RADIUS};
-use surgbench_core::{DeviceCommand, Mat3, Model, Observation, RodObs, Scene, SimError, StepStats, Vec3};
+use surgbench_core::{DeviceCommand, Model, Observation, Scene, SimError, StepStats, Vec3};
 
 #[test]
 fn coronary_scores_penetration_over_a_shortened_run() {
@@ -74,14 +74,7 @@ impl Model for Beating {
             .collect();
         Observation {
             time: self.t,
-            rods: vec![RodObs {
-                arclength: s,
-                rest: nodes.clone(),
-                velocities: vec![Vec3::zeros(); nodes.len()],
-                frames: vec![Mat3::identity(); self.n],
-                nodes,
-                max_stretch: 0.0,
-            }],
+            rods: vec![rod_obs(s, nodes, Vec3::zeros())],
             ..Default::default()
         }
     }

@@ -7,7 +7,7 @@ use common::vessel::*;
 
 use std::f64::consts::PI;
 use surgbench_comparisons::scenarios::vessel::{self, WIRE_RADIUS};
-use surgbench_core::{Capability, DeviceCommand, Mat3, Model, Observation, RodObs, SimError, StepStats, Vec3};
+use surgbench_core::{Capability, DeviceCommand, Model, Observation, SimError, StepStats, Vec3};
 
 /// A rigid wire on the floor tied to the clamp by a spring of stiffness k
 /// (critically damped): Coulomb stick until |F| > mu_s N, then slides with
@@ -77,14 +77,11 @@ impl Model for Slider {
             .collect();
         Observation {
             time: self.t,
-            rods: vec![RodObs {
-                arclength: (0..=n).map(|i| self.len * i as f64 / n as f64).collect(),
-                rest: nodes.clone(),
-                velocities: vec![Vec3::x() * self.vb; n + 1],
-                frames: vec![Mat3::identity(); n],
+            rods: vec![rod_obs(
+                (0..=n).map(|i| self.len * i as f64 / n as f64).collect(),
                 nodes,
-                max_stretch: 0.0,
-            }],
+                Vec3::x() * self.vb,
+            )],
             hand_force: Vec3::x() * self.spring(),
             ..Default::default()
         }
