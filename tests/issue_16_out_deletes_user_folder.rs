@@ -8,7 +8,7 @@
 //! other folder only with `--force`; a plain file never. A refusal is exit
 //! code 2 and touches nothing.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 /// `surgbench run-one` of the reproduction into `out`, plus `extra`.
@@ -54,12 +54,18 @@ fn assert_refused(o: &Output, needle: &str) {
     assert!(err.contains(needle), "stderr should mention `{needle}`: {err}");
 }
 
+/// The user folder `<dir>/mine` holding `thesis.tex` ("thesis\n").
+fn user_folder(dir: &Path) -> PathBuf {
+    let mine = dir.join("mine");
+    std::fs::create_dir_all(&mine).unwrap();
+    std::fs::write(mine.join("thesis.tex"), "thesis\n").unwrap();
+    mine
+}
+
 #[test]
 fn run_one_refuses_a_user_folder_and_keeps_the_thesis() {
     let tmp = tempfile::tempdir().unwrap();
-    let mine = tmp.path().join("mine");
-    std::fs::create_dir_all(&mine).unwrap();
-    std::fs::write(mine.join("thesis.tex"), "thesis\n").unwrap();
+    let mine = user_folder(tmp.path());
     assert_refused(&run_one(&mine, &[]), "--force");
     assert_eq!(std::fs::read_to_string(mine.join("thesis.tex")).unwrap(), "thesis\n");
     let names: Vec<_> = std::fs::read_dir(&mine)
@@ -74,9 +80,7 @@ fn run_one_refuses_a_user_folder_and_keeps_the_thesis() {
 #[test]
 fn run_refuses_a_user_folder_and_keeps_the_thesis() {
     let tmp = tempfile::tempdir().unwrap();
-    let mine = tmp.path().join("mine");
-    std::fs::create_dir_all(&mine).unwrap();
-    std::fs::write(mine.join("thesis.tex"), "thesis\n").unwrap();
+    let mine = user_folder(tmp.path());
     assert_refused(&run_batch(&mine, &[]), "--force");
     assert_eq!(std::fs::read_to_string(mine.join("thesis.tex")).unwrap(), "thesis\n");
     assert_eq!(std::fs::read_dir(tmp.path()).unwrap().count(), 1);
@@ -131,9 +135,7 @@ fn an_earlier_surgbench_report_folder_is_replaced() {
 #[test]
 fn force_replaces_a_user_folder() {
     let tmp = tempfile::tempdir().unwrap();
-    let mine = tmp.path().join("mine");
-    std::fs::create_dir_all(&mine).unwrap();
-    std::fs::write(mine.join("thesis.tex"), "thesis\n").unwrap();
+    let mine = user_folder(tmp.path());
     let o = run_one(&mine, &["--force"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(mine.join("summary.json").is_file());

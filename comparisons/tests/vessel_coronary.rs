@@ -6,9 +6,8 @@ use common::params;
 use common::vessel::*;
 
 use std::f64::consts::PI;
-use std::sync::Arc;
 use surgbench_comparisons::scenarios::vessel::{ENTRY_S, WIRE_RADIUS};
-use surgbench_core::{DeviceCommand, Mat3, Model, Observation, RodObs, Scene, SimError, StepStats, Vec3};
+use surgbench_core::{DeviceCommand, Model, Observation, Scene, SimError, StepStats, Vec3};
 
 #[test]
 fn coronary_scores_penetration_over_a_shortened_run() {
@@ -24,14 +23,7 @@ fn coronary_scores_penetration_over_a_shortened_run() {
         caps: ALL_ROD_CAPS,
         build: Box::new(|_| {
             let trunk = surgbench_core::vessel::coronary_tortuous().trunk;
-            Box::new(Kinematic {
-                path: Arc::new(move |s| trunk.point_at(ENTRY_S + s)),
-                hand: Arc::new(|_, _| Vec3::zeros()),
-                l0: 0.032,
-                n: 60,
-                t: 0.0,
-                cmd: DeviceCommand::default(),
-            })
+            Box::new(Kinematic::along(move |s| trunk.point_at(ENTRY_S + s), 0.032, 60))
         }),
     };
     let sum = run(s, &p, &f);
@@ -82,14 +74,7 @@ impl Model for Beating {
             .collect();
         Observation {
             time: self.t,
-            rods: vec![RodObs {
-                arclength: s,
-                rest: nodes.clone(),
-                velocities: vec![Vec3::zeros(); nodes.len()],
-                frames: vec![Mat3::identity(); self.n],
-                nodes,
-                max_stretch: 0.0,
-            }],
+            rods: vec![rod_obs(s, nodes, Vec3::zeros())],
             ..Default::default()
         }
     }

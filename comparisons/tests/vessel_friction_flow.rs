@@ -6,9 +6,8 @@ use common::params;
 use common::vessel::*;
 
 use std::f64::consts::PI;
-use std::sync::Arc;
 use surgbench_comparisons::scenarios::vessel::{self, WIRE_RADIUS};
-use surgbench_core::{Capability, DeviceCommand, Mat3, Model, Observation, RodObs, SimError, StepStats, Vec3};
+use surgbench_core::{Capability, DeviceCommand, Model, Observation, SimError, StepStats, Vec3};
 
 /// A rigid wire on the floor tied to the clamp by a spring of stiffness k
 /// (critically damped): Coulomb stick until |F| > mu_s N, then slides with
@@ -78,14 +77,11 @@ impl Model for Slider {
             .collect();
         Observation {
             time: self.t,
-            rods: vec![RodObs {
-                arclength: (0..=n).map(|i| self.len * i as f64 / n as f64).collect(),
-                rest: nodes.clone(),
-                velocities: vec![Vec3::x() * self.vb; n + 1],
-                frames: vec![Mat3::identity(); n],
+            rods: vec![rod_obs(
+                (0..=n).map(|i| self.len * i as f64 / n as f64).collect(),
                 nodes,
-                max_stretch: 0.0,
-            }],
+                Vec3::x() * self.vb,
+            )],
             hand_force: Vec3::x() * self.spring(),
             ..Default::default()
         }
@@ -158,16 +154,7 @@ fn stick_slip_threshold_is_found_by_a_coulomb_slider() {
     // A frictionless wire slides at once: no force builds up.
     let free = TestFactory {
         caps: ALL_ROD_CAPS,
-        build: Box::new(move |_| {
-            Box::new(Kinematic {
-                path: Arc::new(move |s| Vec3::new(s, 0.0, -(2e-3 - r))),
-                hand: Arc::new(|_, _| Vec3::zeros()),
-                l0: l,
-                n: 10,
-                t: 0.0,
-                cmd: DeviceCommand::default(),
-            })
-        }),
+        build: Box::new(move |_| Box::new(Kinematic::along(move |s| Vec3::new(s, 0.0, -(2e-3 - r)), l, 10))),
     };
     let sum = run(s, &p, &free);
     // The kinematic wire keeps its tip at L0 + insertion: it moves with the pull.
@@ -194,16 +181,7 @@ fn flow_drift_needs_flow_and_scores_drift() {
     let l = 2.8e-3;
     let f = TestFactory {
         caps: ALL_ROD_CAPS,
-        build: Box::new(move |_| {
-            Box::new(Kinematic {
-                path: Arc::new(|s| Vec3::new(0.0, s, 0.0)),
-                hand: Arc::new(|_, _| Vec3::zeros()),
-                l0: l,
-                n: 10,
-                t: 0.0,
-                cmd: DeviceCommand::default(),
-            })
-        }),
+        build: Box::new(move |_| Box::new(Kinematic::along(|s| Vec3::new(0.0, s, 0.0), l, 10))),
     };
     let sum = run(s, &p, &f);
     let e = &sum.errors;

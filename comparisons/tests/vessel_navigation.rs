@@ -56,15 +56,12 @@ fn arch_insertion_scores_reach_time_force_and_penetration() {
         caps: ALL_ROD_CAPS,
         build: Box::new(move |_| {
             let trunk = surgbench_core::vessel::aortic_arch().trunk;
-            Box::new(Kinematic {
-                // The descending aorta runs along +z: offset along +y.
-                path: Arc::new(move |s| trunk.point_at(ENTRY_S + s.min(0.05)) + Vec3::y() * off),
-                hand: Arc::new(|_, _| Vec3::zeros()),
-                l0: 0.05,
-                n: 40,
-                t: 0.0,
-                cmd: DeviceCommand::default(),
-            })
+            // The descending aorta runs along +z: offset along +y.
+            Box::new(Kinematic::along(
+                move |s| trunk.point_at(ENTRY_S + s.min(0.05)) + Vec3::y() * off,
+                0.05,
+                40,
+            ))
         }),
     };
     let sum = run(s, &p, &f);
@@ -111,14 +108,11 @@ fn arch_insertion_uses_a_cached_reference_when_present() {
         caps: ALL_ROD_CAPS,
         build: Box::new(move |_| {
             let trunk = surgbench_core::vessel::aortic_arch().trunk;
-            Box::new(Kinematic {
-                path: Arc::new(move |s| trunk.point_at(ENTRY_S + if s <= L0 { s } else { L0 + 0.9 * (s - L0) })),
-                hand: Arc::new(|_, _| Vec3::zeros()),
-                l0: L0,
-                n: 40,
-                t: 0.0,
-                cmd: DeviceCommand::default(),
-            })
+            Box::new(Kinematic::along(
+                move |s| trunk.point_at(ENTRY_S + if s <= L0 { s } else { L0 + 0.9 * (s - L0) }),
+                L0,
+                40,
+            ))
         }),
     };
     let r = s.instantiate(&p).unwrap();
@@ -192,21 +186,18 @@ fn branch_selection_success_and_miss() {
         build: Box::new(|_| {
             let y = surgbench_core::vessel::y_bifurcation();
             let (trunk, b45) = (y.trunk.clone(), y.branch("branch-45").unwrap().tube.clone());
-            Box::new(Kinematic {
-                path: Arc::new(move |s| {
+            Box::new(Kinematic::along(
+                move |s| {
                     let s = ENTRY_S + s;
                     if s <= trunk.length() {
                         trunk.point_at(s)
                     } else {
                         b45.point_at(s - trunk.length())
                     }
-                }),
-                hand: Arc::new(|_, _| Vec3::zeros()),
-                l0: 0.032,
-                n: 32,
-                t: 0.0,
-                cmd: DeviceCommand::default(),
-            })
+                },
+                0.032,
+                32,
+            ))
         }),
     };
     let p = params(s, &[("target", 0.0)]);

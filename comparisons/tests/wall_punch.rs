@@ -5,12 +5,10 @@
 
 use std::f64::consts::PI;
 mod common;
-use common::{body, edited_reference, level, observe};
+use common::{body, edited_reference, fem_errors_by_level, level, observe};
 use std::path::Path;
 use surgbench_comparisons::datasets::datasets_dir;
 use surgbench_comparisons::references::PunchReference;
-use surgbench_comparisons::registry;
-use surgbench_comparisons::runner::{RunOptions, run_single};
 use surgbench_comparisons::scenario::{Params, Scenario};
 use surgbench_comparisons::scenarios::tissue::{self, WALL_PUNCH};
 use surgbench_core::Vec3;
@@ -288,21 +286,9 @@ fn wall_scores_force_surface_and_curve_against_the_reference() {
 
 #[test]
 fn fem_wall_punch_converges_towards_the_reference() {
-    let sc = registry::scenario("wall-punch").unwrap();
-    let p = params(&[]);
-    let f = registry::model("fem").unwrap();
-    let mut force = Vec::new();
-    let mut surface = Vec::new();
-    for l in 0..=2usize {
-        let mut fid = level(l);
-        fid.set("dt", 0.025).unwrap();
-        let inst = sc.instantiate_at(&p, &fid).unwrap();
-        let s = run_single(sc, &p, &inst, f, &fid, &RunOptions::default()).unwrap();
-        assert_eq!(s.status, "ok", "level {l}: {}", s.reason);
-        eprintln!("fem level {l}: {:?}", s.errors);
-        force.push(s.errors["force_error_rel"]);
-        surface.push(s.errors["surface_error_rel"]);
-    }
+    let errors = fem_errors_by_level("wall-punch");
+    let force: Vec<f64> = errors.iter().map(|e| e["force_error_rel"]).collect();
+    let surface: Vec<f64> = errors.iter().map(|e| e["surface_error_rel"]).collect();
     // Cells through the wall double with each level.
     let n: Vec<f64> = (0..=2).map(|l| (1u32 << l) as f64).collect();
     let order = surgbench_reports::fit_order(&n, &force).unwrap();

@@ -3,7 +3,10 @@
 
 pub mod vessel;
 
+use std::collections::BTreeMap;
 use surgbench_comparisons::datasets::datasets_dir;
+use surgbench_comparisons::registry;
+use surgbench_comparisons::runner::{RunOptions, run_single};
 use surgbench_comparisons::scenario::{Params, Scenario, ScenarioRun};
 use surgbench_core::{Fidelity, Observation, TissueBody, TissueObs, Vec3};
 
@@ -63,4 +66,24 @@ pub fn edited_reference(dir: &str, files: &[&str], edit: impl Fn(&str, String) -
         std::fs::write(dst.join(name), edit(name, text)).unwrap();
     }
     tmp
+}
+
+/// The `fem` model's errors on scenario `id` (default parameters) at mesh
+/// levels 0, 1 and 2, each run at `dt = 0.025` s: the data of a
+/// convergence study. Every run must end `ok`.
+pub fn fem_errors_by_level(id: &str) -> Vec<BTreeMap<String, f64>> {
+    let sc = registry::scenario(id).unwrap();
+    let p = params(sc, &[]);
+    let f = registry::model("fem").unwrap();
+    (0..=2usize)
+        .map(|l| {
+            let mut fid = level(l);
+            fid.set("dt", 0.025).unwrap();
+            let inst = sc.instantiate_at(&p, &fid).unwrap();
+            let s = run_single(sc, &p, &inst, f, &fid, &RunOptions::default()).unwrap();
+            assert_eq!(s.status, "ok", "level {l}: {}", s.reason);
+            eprintln!("fem level {l}: {:?}", s.errors);
+            s.errors
+        })
+        .collect()
 }

@@ -26,6 +26,21 @@ pub struct Kinematic {
     pub cmd: DeviceCommand,
 }
 
+impl Kinematic {
+    /// A wire of free length `l0` (m) in `n` segments along `path`, with no
+    /// hand force, at time zero.
+    pub fn along(path: impl Fn(f64) -> Vec3 + Send + Sync + 'static, l0: f64, n: usize) -> Self {
+        Kinematic {
+            path: Arc::new(path),
+            hand: Arc::new(|_, _| Vec3::zeros()),
+            l0,
+            n,
+            t: 0.0,
+            cmd: DeviceCommand::default(),
+        }
+    }
+}
+
 impl Model for Kinematic {
     fn step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
         self.t += dt;
@@ -38,20 +53,26 @@ impl Model for Kinematic {
         let nodes: Vec<Vec3> = s.iter().map(|&s| (self.path)(s)).collect();
         Observation {
             time: self.t,
-            rods: vec![RodObs {
-                arclength: s.clone(),
-                rest: nodes.clone(),
-                velocities: vec![Vec3::zeros(); nodes.len()],
-                frames: vec![Mat3::identity(); self.n],
-                nodes,
-                max_stretch: 0.0,
-            }],
+            rods: vec![rod_obs(s, nodes, Vec3::zeros())],
             hand_force: (self.hand)(self.t, &self.cmd),
             ..Default::default()
         }
     }
     fn dt(&self) -> f64 {
         1e-3
+    }
+}
+
+/// A rod observation of `nodes` at arclengths `s` (m), at their rest
+/// positions, every node moving at `velocity`, frames the identity.
+pub fn rod_obs(s: Vec<f64>, nodes: Vec<Vec3>, velocity: Vec3) -> RodObs {
+    RodObs {
+        arclength: s,
+        rest: nodes.clone(),
+        velocities: vec![velocity; nodes.len()],
+        frames: vec![Mat3::identity(); nodes.len() - 1],
+        nodes,
+        max_stretch: 0.0,
     }
 }
 

@@ -5,7 +5,7 @@ use super::*;
 use crate::params;
 use crate::references::BlockReference;
 use crate::scenario::{Declared, Inputs, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, UsageError};
-use surgbench_core::{Family, Observation, TetMesh, TissueBody, Vec3};
+use surgbench_core::{Family, Observation, TetMesh, Vec3};
 
 params! {
     /// Parameters of `block-compression`.
@@ -42,10 +42,7 @@ impl Pointwise for BlockRun {
         };
         // The body pushes the plate up (+z): compressive force positive.
         let f = obs.hand_force;
-        m.insert("reaction_force_n".into(), f.z);
-        m.insert("reference_force_n".into(), self.force_ref);
-        m.insert("force_error_rel".into(), (f.z - self.force_ref).abs() / self.force_ref);
-        m.insert("force_ratio".into(), f.z / self.force_ref);
+        force_metrics(&mut m, f.z, self.force_ref);
         m.insert("lateral_force_rel".into(), f.xy().norm() / self.force_ref);
         common_metrics(&mut m, &self.mesh, t);
         m
@@ -78,18 +75,9 @@ fn build(p: &BlockParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
             reference.max_strain()
         ))
     })?;
-    let n = block_cells(level);
-    let mesh = mesh::block(Vec3::new(edge, edge, edge), [n, n, n]);
-    let tol = 1e-9 * edge;
-    let mut body = TissueBody::new(
-        mesh.clone(),
-        material(p.youngs_modulus, p.density, reference.poisson_ratio),
-    );
-    body.fixed_nodes = mesh::nodes_on_plane(&mesh, 2, 0.0, tol);
-    body.driven_nodes = mesh::nodes_on_plane(&mesh, 2, edge, tol)
-        .into_iter()
-        .map(|i| (i, Vec3::new(0.0, 0.0, -strain * edge)))
-        .collect();
+    let solid = material(p.youngs_modulus, p.density, reference.poisson_ratio);
+    let body = clamped_cube(edge, level, solid, |_| Vec3::new(0.0, 0.0, -strain * edge));
+    let mesh = body.mesh.clone();
     let scene = static_scene(BLOCK_COMPRESSION.info.id, body, p.ramp_time, p.duration, p.settle_tol)?;
     // Twice the linear work F d / 2: room for stiffer large-strain laws.
     let work = force_ref * strain * edge;

@@ -231,6 +231,47 @@ fn force_metrics(m: &mut Metrics, f: f64, f_ref: f64) {
     m.insert("force_ratio".into(), f / f_ref);
 }
 
+/// The wall-profile scores of the vessel-wall scenes from `(model, reference)`
+/// displacement pairs (m) at the probes: `surface_error_rel` (RMS error over
+/// RMS reference) and `surface_error_max_rel` (largest error over `depth`);
+/// none when every reference displacement is zero.
+fn surface_metrics(m: &mut Metrics, pairs: impl IntoIterator<Item = (f64, f64)>, depth: f64) {
+    let (mut e2, mut r2, mut emax) = (0.0, 0.0, 0.0f64);
+    for (got, want) in pairs {
+        let d = got - want;
+        e2 += d * d;
+        r2 += want * want;
+        emax = emax.max(d.abs());
+    }
+    if r2 > 0.0 {
+        m.insert("surface_error_rel".into(), (e2 / r2).sqrt());
+        m.insert("surface_error_max_rel".into(), emax / depth);
+    }
+}
+
+/// Displacement (m) of the observed body at a point located in `mesh` as
+/// tet `e` with barycentric weights `w`.
+fn probe_displacement(mesh: &TetMesh, t: &TissueObs, e: usize, w: &[f64; 4]) -> Vec3 {
+    let tet = mesh.tets[e];
+    (0..4).map(|k| (t.nodes[tet[k]] - mesh.nodes[tet[k]]) * w[k]).sum()
+}
+
+/// A cube `[0, edge]^3` (m) of `solid`, [`block_cells`]`(level)` cells a
+/// side, its base `z = 0` clamped and every top node `x` (`z = edge`)
+/// driven by `drive(x)` (m): the loading of the cube scenes.
+fn clamped_cube(edge: f64, level: usize, solid: SolidMaterial, drive: impl Fn(&Vec3) -> Vec3) -> TissueBody {
+    let n = block_cells(level);
+    let mesh = mesh::block(Vec3::new(edge, edge, edge), [n, n, n]);
+    let tol = 1e-9 * edge;
+    let mut body = TissueBody::new(mesh.clone(), solid);
+    body.fixed_nodes = mesh::nodes_on_plane(&mesh, 2, 0.0, tol);
+    body.driven_nodes = mesh::nodes_on_plane(&mesh, 2, edge, tol)
+        .into_iter()
+        .map(|i| (i, drive(&mesh.nodes[i])))
+        .collect();
+    body
+}
+
 /// Rollers on symmetry planes: every node of `mesh` not in `fixed` whose
 /// `held(x)` holds any axis, with those axes.
 fn rollers(mesh: &TetMesh, fixed: &[usize], held: impl Fn(&Vec3) -> [bool; 3]) -> Vec<(usize, [bool; 3])> {

@@ -7,7 +7,7 @@ use crate::params;
 use crate::scenario::{Declared, Inputs, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, UsageError};
 use surgbench_core::Mat3;
 use surgbench_core::io::truth_cube as phantom;
-use surgbench_core::{Family, Observation, TetMesh, TissueBody, Vec3};
+use surgbench_core::{Family, Observation, TetMesh, Vec3};
 
 /// Edge of the Truth Cube (m), Kerdok et al. 2003.
 pub const TRUTH_CUBE_EDGE: f64 = 0.08;
@@ -245,8 +245,9 @@ fn build(p: &TruthParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
     let frame = CubeFrame::fit(&cube, TRUTH_CUBE_EDGE).map_err(UsageError)?;
     let strain = phantom::NOMINAL_STRAINS[state];
     let edge = TRUTH_CUBE_EDGE;
-    let n = block_cells(level);
-    let mesh = mesh::block(Vec3::new(edge, edge, edge), [n, n, n]);
+    let solid = material(p.youngs_modulus, p.density, p.poisson_ratio);
+    let body = clamped_cube(edge, level, solid, |_| Vec3::new(0.0, 0.0, -strain * edge));
+    let mesh = body.mesh.clone();
     let cells = frame.beads[0]
         .iter()
         .map(|b| locate(&mesh, b).expect("block mesh has tets"))
@@ -259,13 +260,6 @@ fn build(p: &TruthParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
         .sum::<f64>()
         / measured.len() as f64)
         .sqrt();
-    let tol = 1e-9 * edge;
-    let mut body = TissueBody::new(mesh.clone(), material(p.youngs_modulus, p.density, p.poisson_ratio));
-    body.fixed_nodes = mesh::nodes_on_plane(&mesh, 2, 0.0, tol);
-    body.driven_nodes = mesh::nodes_on_plane(&mesh, 2, edge, tol)
-        .into_iter()
-        .map(|i| (i, Vec3::new(0.0, 0.0, -strain * edge)))
-        .collect();
     let e = p.youngs_modulus;
     let scene = static_scene(TRUTH_CUBE.info.id, body, p.ramp_time, p.duration, p.settle_tol)?;
     // Bonded, nearly incompressible: a few times E V strain^2.

@@ -4,7 +4,7 @@
 use super::*;
 use crate::params;
 use crate::scenario::{Declared, Inputs, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, UsageError};
-use surgbench_core::{Family, Observation, TetMesh, TissueBody, Vec3};
+use surgbench_core::{Family, Observation, TetMesh, Vec3};
 
 params! {
     /// Parameters of `volume-preservation`.
@@ -91,15 +91,9 @@ pub const VOLUME_PRESERVATION: Declared<VolumeParams> = Declared {
 fn build(p: &VolumeParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
     let level = mesh_level(VOLUME_PRESERVATION.info.id, inputs.fidelity)?;
     let (edge, c, twist) = (p.edge, p.compression, p.twist);
-    let n = block_cells(level);
-    let mesh = mesh::block(Vec3::new(edge, edge, edge), [n, n, n]);
-    let tol = 1e-9 * edge;
-    let mut body = TissueBody::new(mesh.clone(), material(p.youngs_modulus, p.density, p.poisson_ratio));
-    body.fixed_nodes = mesh::nodes_on_plane(&mesh, 2, 0.0, tol);
-    body.driven_nodes = mesh::nodes_on_plane(&mesh, 2, edge, tol)
-        .into_iter()
-        .map(|i| (i, squash_twist(&mesh.nodes[i], edge, c, twist)))
-        .collect();
+    let solid = material(p.youngs_modulus, p.density, p.poisson_ratio);
+    let body = clamped_cube(edge, level, solid, |x| squash_twist(x, edge, c, twist));
+    let mesh = body.mesh.clone();
     let e = p.youngs_modulus;
     let scene = static_scene(VOLUME_PRESERVATION.info.id, body, p.ramp_time, p.duration, p.settle_tol)?;
     // Elastic energy scale E V (strain^2 + shear^2), twice over.

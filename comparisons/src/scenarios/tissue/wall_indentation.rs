@@ -124,19 +124,11 @@ impl ForceCurve for WallSphereRun {
         m.insert("penetration_over_depth".into(), pen / self.depth);
         m.insert("contact_extent_z_m".into(), extent);
         m.insert("reference_contact_extent_z_m".into(), self.extent_ref);
-        let (mut e2, mut r2, mut emax) = (0.0, 0.0, 0.0f64);
-        for (e, w, dir, want) in &self.probes {
-            let tet = self.mesh.tets[*e];
-            let u: Vec3 = (0..4).map(|k| (t.nodes[tet[k]] - self.mesh.nodes[tet[k]]) * w[k]).sum();
-            let d = u.dot(dir) - want;
-            e2 += d * d;
-            r2 += want * want;
-            emax = emax.max(d.abs());
-        }
-        if r2 > 0.0 {
-            m.insert("surface_error_rel".into(), (e2 / r2).sqrt());
-            m.insert("surface_error_max_rel".into(), emax / self.depth);
-        }
+        let radial = self
+            .probes
+            .iter()
+            .map(|(e, w, dir, want)| (probe_displacement(&self.mesh, t, *e, w).dot(dir), *want));
+        surface_metrics(&mut m, radial, self.depth);
         common_metrics(&mut m, &self.mesh, t);
         Some(m)
     }

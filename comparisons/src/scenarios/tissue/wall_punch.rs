@@ -111,20 +111,12 @@ impl ForceCurve for PunchRun {
         force_metrics(&mut m, f, self.force_ref);
         m.insert("stiffness_n_per_m".into(), f / self.depth);
         m.insert("lateral_force_rel".into(), obs.hand_force.yz().norm() / self.force_ref);
-        let (mut e2, mut r2, mut emax) = (0.0, 0.0, 0.0f64);
-        for (e, w, want) in &self.probes {
-            let tet = self.mesh.tets[*e];
-            let u: Vec3 = (0..4).map(|k| (t.nodes[tet[k]] - self.mesh.nodes[tet[k]]) * w[k]).sum();
-            // On theta = 0 the radial direction is +x.
-            let d = u.x - want;
-            e2 += d * d;
-            r2 += want * want;
-            emax = emax.max(d.abs());
-        }
-        if r2 > 0.0 {
-            m.insert("surface_error_rel".into(), (e2 / r2).sqrt());
-            m.insert("surface_error_max_rel".into(), emax / self.depth);
-        }
+        // On theta = 0 the radial direction is +x.
+        let radial = self
+            .probes
+            .iter()
+            .map(|(e, w, want)| (probe_displacement(&self.mesh, t, *e, w).x, *want));
+        surface_metrics(&mut m, radial, self.depth);
         common_metrics(&mut m, &self.mesh, t);
         Some(m)
     }

@@ -9,8 +9,8 @@ use crate::scenario::{
     Declared, Inputs, Metrics, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
 };
 use std::sync::Arc;
+use surgbench_core::Family;
 use surgbench_core::vessel::{self, Vessel};
-use surgbench_core::{Family, Scene};
 
 /// Default J length (m) of the arch wire: half a turn of the 3 mm J common
 /// on 0.035-inch access guidewires (`j_curvature = 333 1/m`); the default
@@ -180,12 +180,8 @@ fn build(p: &ArchParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
     let wire = wire!(p);
     check_lumen(wire.radius, vessel::AORTA_RADIUS, "aortic")?;
     let l0 = p.initial_length;
-    if l0 + ENTRY_S > vessel::ARCH_DESCENDING {
-        return Err(UsageError(format!(
-            "initial_length {l0} m does not fit the {} m descending segment after the {ENTRY_S} m entry",
-            vessel::ARCH_DESCENDING
-        )));
-    }
+    let what = format!("descending segment after the {ENTRY_S} m entry");
+    check_initial_length(l0, vessel::ARCH_DESCENDING, &what)?;
     let feed = p.insertion_speed * p.duration;
     let feed_limit = FeedLimit {
         start: ENTRY_S,
@@ -194,15 +190,11 @@ fn build(p: &ArchParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
     };
     feed_limit.check(feed)?;
     let arch = Arc::new(vessel::aortic_arch());
-    let mut scene = Scene::empty(ARCH_INSERTION.info.id);
-    scene.duration = p.duration;
-    scene.gravity = Vec3::new(0.0, 0.0, -p.gravity);
     let (jl, kappa) = (p.j_length, p.j_curvature);
-    scene
-        .bodies
-        .push(wire.rod_with_j(l0, arch.trunk.frame_at(ENTRY_S), jl, kappa)?.into());
-    scene.environment.vessel = Some(arch.clone());
-    scene.environment.contact = contact(p.friction_static, p.friction_dynamic, wire.radius)?;
+    let rod = wire.rod_with_j(l0, arch.trunk.frame_at(ENTRY_S), jl, kappa)?;
+    let contact = contact(p.friction_static, p.friction_dynamic, wire.radius)?;
+    let mut scene = wire_scene(ARCH_INSERTION.info.id, p.duration, rod, arch.clone(), contact);
+    scene.gravity = Vec3::new(0.0, 0.0, -p.gravity);
     scene.control = push_with_rotations(
         p.insertion_speed,
         scene.duration,

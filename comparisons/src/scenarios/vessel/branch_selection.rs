@@ -7,9 +7,9 @@ use crate::scenario::{
     Declared, Inputs, Metrics, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
 };
 use std::sync::Arc;
+use surgbench_core::Family;
 use surgbench_core::haptic::Session;
 use surgbench_core::vessel::{self, Vessel};
-use surgbench_core::{Family, Scene};
 
 const SESSION_45: &str = include_str!("../../../../datasets/vessels/branch-selection-45.csv");
 const SESSION_70: &str = include_str!("../../../../datasets/vessels/branch-selection-70.csv");
@@ -131,12 +131,7 @@ fn build(p: &BranchParams, _: &Inputs) -> Result<ScenarioRun, UsageError> {
     };
     let session = Session::parse(name, text).map_err(|e| UsageError(e.to_string()))?;
     let (l0, jl, kappa) = (p.initial_length, p.j_length, p.j_curvature);
-    if l0 + ENTRY_S > vessel::Y_TRUNK {
-        return Err(UsageError(format!(
-            "initial_length {l0} m does not fit the {} m trunk",
-            vessel::Y_TRUNK
-        )));
-    }
+    check_initial_length(l0, vessel::Y_TRUNK, "trunk")?;
     // Lateral offset of the J's end from the axis: (1 - cos(kappa j)) / kappa.
     let offset = (1.0 - (kappa * jl).min(PI).cos()) / kappa;
     if offset + wire.radius > vessel::Y_TRUNK_RADIUS {
@@ -148,11 +143,8 @@ fn build(p: &BranchParams, _: &Inputs) -> Result<ScenarioRun, UsageError> {
     // Clamp on the trunk axis, its local y (where the J bends) turned to +z.
     let base = y.trunk.frame_at(ENTRY_S) * Iso3::rotation(Vec3::x() * (PI / 2.0));
     let rod = wire.rod_with_j(l0, base, jl, kappa)?;
-    let mut scene = Scene::empty(BRANCH_SELECTION.info.id);
-    scene.duration = p.duration;
-    scene.bodies.push(rod.into());
-    scene.environment.vessel = Some(y.clone());
-    scene.environment.contact = contact(p.friction_static, p.friction_dynamic, wire.radius)?;
+    let contact = contact(p.friction_static, p.friction_dynamic, wire.radius)?;
+    let mut scene = wire_scene(BRANCH_SELECTION.info.id, p.duration, rod, y.clone(), contact);
     scene.control = session.timeline.clone();
     scene.validate().map_err(UsageError)?;
     // The whole wire bent at a 10 mm radius into a branch.

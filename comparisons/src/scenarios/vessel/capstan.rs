@@ -8,9 +8,9 @@ use crate::scenario::{
     Declared, Inputs, Metrics, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
 };
 use std::sync::Arc;
+use surgbench_core::Family;
 use surgbench_core::LoadRamp;
 use surgbench_core::sdf::CenterlineBuilder;
-use surgbench_core::{Family, Scene};
 
 params! {
     /// Parameters of `capstan`.
@@ -197,15 +197,9 @@ fn build(p: &CapstanParams, _: &Inputs) -> Result<ScenarioRun, UsageError> {
     rod.tip_load_ramp = Some(LoadRamp::linear(t1, t1 + CAPSTAN_RAMP));
     let t2 = t1 + CAPSTAN_RAMP + CAPSTAN_DWELL;
     let t3 = t2 + lp / vp;
-    let mut scene = Scene::empty(CAPSTAN.info.id);
-    scene.duration = t3;
-    scene.bodies.push(rod.into());
-    scene.environment.vessel = Some(Arc::new(tube));
-    scene.environment.contact = ContactParams {
-        friction_static: mu,
-        friction_dynamic: mu,
-        margin: r,
-    };
+    // One coefficient: static and dynamic friction are the same.
+    let contact = contact(mu, mu, r)?;
+    let mut scene = wire_scene(CAPSTAN.info.id, t3, rod, Arc::new(tube), contact);
     scene.control = timeline(&[(0.0, 0.0, 0.0), (t1, ins, 0.0), (t2, ins, 0.0), (t3, ins - lp, 0.0)]);
     scene.validate().map_err(UsageError)?;
     let ei = e * PI * r.powi(4) / 4.0;

@@ -8,9 +8,9 @@ use crate::scenario::{
     Declared, Inputs, Metrics, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
 };
 use std::sync::Arc;
+use surgbench_core::Family;
 use surgbench_core::motion::VesselMotion;
 use surgbench_core::vessel::{self, Vessel};
-use surgbench_core::{Family, Scene};
 
 /// Friction of the coated coronary wire, static.
 pub(super) const C_MU_S: ParamSpec = ParamSpec::new(
@@ -149,12 +149,7 @@ pub(super) fn coronary_run(
     let wire = wire!(p);
     check_lumen(wire.radius, vessel::CORONARY_RADIUS, "coronary")?;
     let l0 = p.initial_length;
-    if l0 + ENTRY_S > vessel::CORONARY_ENTRY {
-        return Err(UsageError(format!(
-            "initial_length {l0} m does not fit the {} m straight entry",
-            vessel::CORONARY_ENTRY
-        )));
-    }
+    check_initial_length(l0, vessel::CORONARY_ENTRY, "straight entry")?;
     let cor = Arc::new(vessel::coronary_tortuous());
     let duration = p.duration;
     let v = p.push_speed;
@@ -173,12 +168,11 @@ pub(super) fn coronary_run(
         what: "coronary entry",
     };
     feed_limit.check(advance)?;
-    let mut scene = Scene::empty(id);
-    scene.duration = duration;
-    scene.bodies.push(wire.rod(l0, cor.trunk.frame_at(ENTRY_S))?.into());
-    scene.environment.vessel = Some(cor.clone());
-    scene.environment.vessel_motion = motion(ENTRY_S + advance)?;
-    scene.environment.contact = contact(p.friction_static, p.friction_dynamic, wire.radius)?;
+    let rod = wire.rod(l0, cor.trunk.frame_at(ENTRY_S))?;
+    let motion = motion(ENTRY_S + advance)?;
+    let contact = contact(p.friction_static, p.friction_dynamic, wire.radius)?;
+    let mut scene = wire_scene(id, duration, rod, cor.clone(), contact);
+    scene.environment.vessel_motion = motion;
     scene.control = push_pull_rotate(v, duration);
     scene.validate().map_err(UsageError)?;
     // The whole wire bent to the tightest 5 mm bend.

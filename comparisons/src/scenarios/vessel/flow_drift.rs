@@ -8,10 +8,10 @@ use crate::scenario::{
     Declared, Inputs, Metrics, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
 };
 use std::sync::Arc;
+use surgbench_core::Family;
 use surgbench_core::Settle;
 use surgbench_core::flow::{BLOOD_DENSITY, PoiseuilleFlow};
 use surgbench_core::sdf::StraightTube;
-use surgbench_core::{Family, Scene};
 
 params! {
     /// Parameters of `flow-drift`.
@@ -133,21 +133,18 @@ fn build(p: &FlowParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
         radius: big_r,
     };
     let v = p.flow_speed;
-    let mut scene = Scene::empty(FLOW_DRIFT.info.id);
-    scene.duration = p.duration;
+    let contact = contact(p.friction_static, p.friction_dynamic, r)?;
+    let mut scene = wire_scene(FLOW_DRIFT.info.id, p.duration, rod, Arc::new(tube), contact);
     scene.settle = Some(Settle {
         velocity_tol: p.settle_tol,
         min_time: 0.05,
     });
-    scene.bodies.push(rod.into());
-    scene.environment.vessel = Some(Arc::new(tube));
     scene.environment.flow = Some(Arc::new(PoiseuilleFlow {
         origin: Vec3::zeros(),
         axis: Vec3::x(),
         radius: big_r,
         v_max: v,
     }));
-    scene.environment.contact = contact(p.friction_static, p.friction_dynamic, r)?;
     scene.validate().map_err(UsageError)?;
     // Dynamic pressure times the wire's projected area, over the length.
     let drag = 0.5 * BLOOD_DENSITY * v * v * 2.0 * r * l;

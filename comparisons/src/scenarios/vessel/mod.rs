@@ -38,6 +38,7 @@ pub use stick_slip_threshold::{STICK_SLIP_THRESHOLD, StickParams};
 
 use crate::scenario::{FeedLimit, Metrics, ParamSpec, Range, Reference, Scenario, ScenarioRun, Scorer, UsageError};
 use std::f64::consts::PI;
+use std::sync::Arc;
 use surgbench_core::sdf::Sdf;
 use surgbench_core::{ContactParams, ControlKey, ControlTimeline, Iso3, Observation, RodBody, RodSection, Scene, Vec3};
 
@@ -214,9 +215,32 @@ fn contact(friction_static: f64, friction_dynamic: f64, margin: f64) -> Result<C
     Ok(c)
 }
 
-/// Insertion moves the clamp along its straight tangent: it must stay in
-/// the straight segment (length `straight`, m) it starts in, or the scene
-/// would drive it through the wall. `reach` = clamp start + deepest feed (m).
+/// The scene `id` every vessel scenario starts from: one wire `rod` in
+/// `vessel` with wire-wall `contact`, run for `duration` s. The scenario
+/// adds its control, gravity, flow or wall motion.
+fn wire_scene(id: &str, duration: f64, rod: RodBody, vessel: Arc<dyn Sdf>, contact: ContactParams) -> Scene {
+    let mut scene = Scene::empty(id);
+    scene.duration = duration;
+    scene.bodies.push(rod.into());
+    scene.environment.vessel = Some(vessel);
+    scene.environment.contact = contact;
+    scene
+}
+
+/// The wire's initial free length `l0` (m), clamped `ENTRY_S` into the
+/// vessel, must end inside the `straight` segment (m) it starts in, named
+/// `what` in the error.
+fn check_initial_length(l0: f64, straight: f64, what: &str) -> Result<(), UsageError> {
+    if l0 + ENTRY_S > straight {
+        return Err(UsageError(format!(
+            "initial_length {l0} m does not fit the {straight} m {what}"
+        )));
+    }
+    Ok(())
+}
+
+/// The wire (radius `wire_radius`, m) must fit the `what` lumen of radius
+/// `lumen` (m) with room to move: under 90 % of it.
 fn check_lumen(wire_radius: f64, lumen: f64, what: &str) -> Result<(), UsageError> {
     if !(wire_radius < 0.9 * lumen) {
         return Err(UsageError(format!(

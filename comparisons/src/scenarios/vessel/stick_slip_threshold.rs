@@ -7,8 +7,8 @@ use crate::scenario::{
     Declared, Inputs, Metrics, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
 };
 use std::sync::Arc;
+use surgbench_core::Family;
 use surgbench_core::sdf::StraightTube;
-use surgbench_core::{Family, Scene};
 
 params! {
     /// Parameters of `stick-slip-threshold`.
@@ -197,16 +197,9 @@ fn build(p: &StickParams, _: &Inputs) -> Result<ScenarioRun, UsageError> {
             vp * tp
         )));
     }
-    let mut scene = Scene::empty(STICK_SLIP_THRESHOLD.info.id);
-    scene.duration = ts + tp;
+    let contact = contact(mu_s, mu_d, r)?;
+    let mut scene = wire_scene(STICK_SLIP_THRESHOLD.info.id, ts + tp, rod, Arc::new(tube), contact);
     scene.gravity = Vec3::new(0.0, 0.0, -g);
-    scene.bodies.push(rod.into());
-    scene.environment.vessel = Some(Arc::new(tube));
-    scene.environment.contact = ContactParams {
-        friction_static: mu_s,
-        friction_dynamic: mu_d,
-        margin: r,
-    };
     scene.control = timeline(&[(0.0, 0.0, 0.0), (ts, 0.0, 0.0), (ts + tp, -vp * tp, 0.0)]);
     scene.validate().map_err(UsageError)?;
     let run = StickRun {
