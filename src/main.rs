@@ -252,12 +252,7 @@ fn short(v: f64) -> String {
 /// choice key then lists each name with what it selects.
 fn list_key(k: &surgbench_core::FidelityKey) {
     use surgbench_core::KeyKind;
-    match k.kind {
-        KeyKind::Number => say!("  {:<14}fidelity {:<14} {}", "", k.name, k.doc),
-        KeyKind::Switch | KeyKind::Choice(_) => {
-            say!("  {:<14}fidelity {:<14} {}: {}", "", k.name, k.values(), k.doc)
-        }
-    }
+    say!("  {:<14}fidelity {:<14} {}: {}", "", k.name, k.values(), k.doc);
     if let KeyKind::Choice(choices) = k.kind {
         for c in choices {
             say!("  {:<29}{:<18} {}", "", format!("= \"{}\"", c.name), c.doc);

@@ -54,7 +54,7 @@ pub use scene::{
     Settle, SphereIndenter, TissueBody,
 };
 pub use sdf::Sdf;
-pub use settings::{Choice, FidelityKey, KeyKind, Settings};
+pub use settings::{Choice, FidelityKey, KeyKind, Settings, Span};
 
 /// 3-vector of `f64` (SI units).
 pub type Vec3 = nalgebra::Vector3<f64>;

@@ -1,7 +1,8 @@
 //! What a model declares about its fidelity extras, and the fidelity its
 //! build receives once resolved against that declaration.
 //!
-//! A [`FidelityKey`] is a number (its unit and range in the doc), an on/off
+//! A [`FidelityKey`] is a number (its unit in the doc, the values it takes
+//! declared as a [`Span`] and checked here, not by each model), an on/off
 //! [`KeyKind::Switch`] (the number 0 or 1), or a [`KeyKind::Choice`] among
 //! names. [`Settings`] is a fidelity resolved once: the model's defaults for
 //! the scene overlaid with the request, every extra a declared key, every
@@ -42,12 +43,64 @@ impl Choice {
     }
 }
 
+/// The numbers a numeric key takes: an interval, its ends open or closed,
+/// whole numbers only if `whole`. Always finite.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Span {
+    /// Lower end (may be `-inf`).
+    pub min: f64,
+    /// Upper end (may be `inf`).
+    pub max: f64,
+    /// Whether `min` itself is excluded.
+    pub open_min: bool,
+    /// Whether `max` itself is excluded.
+    pub open_max: bool,
+    /// Whole numbers only (counts, thread numbers).
+    pub whole: bool,
+}
+
+impl Span {
+    /// Any finite number.
+    pub const ANY: Span = Span {
+        min: f64::NEG_INFINITY,
+        max: f64::INFINITY,
+        open_min: false,
+        open_max: false,
+        whole: false,
+    };
+
+    /// Whether `v` is in the span.
+    pub fn contains(&self, v: f64) -> bool {
+        let above = if self.open_min { v > self.min } else { v >= self.min };
+        let below = if self.open_max { v < self.max } else { v <= self.max };
+        v.is_finite() && above && below && (!self.whole || v.fract() == 0.0)
+    }
+
+    /// For listings and messages: `number`, `number >= 0`, `number in (0, 1)`,
+    /// `integer in 1..=64`.
+    pub fn describe(&self) -> String {
+        let what = if self.whole { "integer" } else { "number" };
+        match (self.min.is_finite(), self.max.is_finite()) {
+            (false, false) => what.into(),
+            (true, false) => format!("{what} {} {}", if self.open_min { ">" } else { ">=" }, self.min),
+            (false, true) => format!("{what} {} {}", if self.open_max { "<" } else { "<=" }, self.max),
+            (true, true) if self.whole => format!("{what} in {}..={}", self.min, self.max),
+            (true, true) => format!(
+                "{what} in {}{}, {}{}",
+                if self.open_min { "(" } else { "[" },
+                self.min,
+                self.max,
+                if self.open_max { ")" } else { "]" }
+            ),
+        }
+    }
+}
+
 /// The values a fidelity key takes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum KeyKind {
-    /// A number; its unit and range are in the key's doc, the model checks
-    /// the range.
-    Number,
+    /// A number in a [`Span`]; its unit is in the key's doc.
+    Number(Span),
     /// On/off: the number 0 (off) or 1 (on).
     Switch,
     /// One of these names.
@@ -55,7 +108,7 @@ pub enum KeyKind {
 }
 
 /// A model-specific fidelity knob accepted in [`Fidelity::extras`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FidelityKey {
     /// Name used on the command line and in comparison TOML.
     pub name: &'static str,
@@ -66,13 +119,54 @@ pub struct FidelityKey {
 }
 
 impl FidelityKey {
-    /// A numeric key.
+    /// A numeric key taking any finite number (narrow it with
+    /// [`Self::at_least`], [`Self::above`], [`Self::within`],
+    /// [`Self::between`] or [`Self::whole`]).
     pub const fn number(name: &'static str, doc: &'static str) -> Self {
         Self {
             name,
             doc,
-            kind: KeyKind::Number,
+            kind: KeyKind::Number(Span::ANY),
         }
+    }
+
+    /// This numeric key with its span.
+    const fn span(self, min: f64, max: f64, open_min: bool, open_max: bool, whole: bool) -> Self {
+        Self {
+            kind: KeyKind::Number(Span {
+                min,
+                max,
+                open_min,
+                open_max,
+                whole,
+            }),
+            ..self
+        }
+    }
+
+    /// Numbers `>= min`.
+    pub const fn at_least(self, min: f64) -> Self {
+        self.span(min, f64::INFINITY, false, false, false)
+    }
+
+    /// Numbers `> min`.
+    pub const fn above(self, min: f64) -> Self {
+        self.span(min, f64::INFINITY, true, false, false)
+    }
+
+    /// Numbers in `[min, max]`.
+    pub const fn within(self, min: f64, max: f64) -> Self {
+        self.span(min, max, false, false, false)
+    }
+
+    /// Numbers in `(min, max)`.
+    pub const fn between(self, min: f64, max: f64) -> Self {
+        self.span(min, max, true, true, false)
+    }
+
+    /// Whole numbers in `min..=max`.
+    pub const fn whole(self, min: f64, max: f64) -> Self {
+        self.span(min, max, false, false, true)
     }
 
     /// An on/off key (0 or 1).
@@ -96,7 +190,7 @@ impl FidelityKey {
     /// The values it takes, for listings: `number`, `0 | 1`, `direct | cg`.
     pub fn values(&self) -> String {
         match self.kind {
-            KeyKind::Number => "number".into(),
+            KeyKind::Number(span) => span.describe(),
             KeyKind::Switch => "0 | 1".into(),
             KeyKind::Choice(c) => names(c).join(" | "),
         }
@@ -107,10 +201,15 @@ impl FidelityKey {
     pub fn check(&self, value: &Setting) -> Result<(), FidelityError> {
         let key = self.name;
         match (self.kind, value) {
-            (KeyKind::Number, Setting::Number(_)) => Ok(()),
+            (KeyKind::Number(span), Setting::Number(v)) if span.contains(*v) => Ok(()),
+            (KeyKind::Number(span), Setting::Number(v)) => Err(FidelityError(format!(
+                "fidelity `{key}` must be {} {}, got {v}",
+                if span.whole { "an" } else { "a" },
+                span.describe()
+            ))),
             (KeyKind::Switch, Setting::Number(v)) if *v == 0.0 || *v == 1.0 => Ok(()),
             (KeyKind::Choice(c), Setting::Choice(n)) if c.iter().any(|c| c.name == n) => Ok(()),
-            (KeyKind::Number, Setting::Choice(n)) => {
+            (KeyKind::Number(_), Setting::Choice(n)) => {
                 Err(FidelityError(format!("fidelity `{key}` takes a number, got `{n}`")))
             }
             (KeyKind::Switch, v) => Err(FidelityError(format!(
@@ -201,27 +300,6 @@ impl Settings {
         self.number(name).unwrap_or(default)
     }
 
-    /// The numeric extra `name` as a whole number in `range`, or `default`
-    /// when unset; a fraction or a value outside is a [`BuildError`] naming
-    /// the key (thread counts, iteration limits).
-    pub fn whole_in(
-        &self,
-        name: &str,
-        default: usize,
-        range: std::ops::RangeInclusive<usize>,
-    ) -> Result<usize, BuildError> {
-        let v = self.number_or(name, default as f64);
-        let (lo, hi) = (*range.start(), *range.end());
-        if v.fract() == 0.0 && v >= lo as f64 && v <= hi as f64 {
-            Ok(v as usize)
-        } else {
-            Err(BuildError::bad(
-                name,
-                format!("must be an integer in {lo}..={hi}, got {v}"),
-            ))
-        }
-    }
-
     /// The switch `name` (0 off, 1 on), or `default` when unset.
     pub fn switch(&self, name: &str, default: bool) -> bool {
         self.number(name).map_or(default, |v| v == 1.0)
@@ -240,6 +318,39 @@ impl Settings {
                 .map(|(_, v)| *v)
                 .ok_or_else(|| BuildError::bad(name, format!("the model declares `{n}` but does not map it"))),
             Some(Setting::Number(v)) => Err(BuildError::bad(name, format!("takes a name, got the number {v}"))),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn declared_ranges_are_checked_and_described() {
+        const KEYS: &[FidelityKey] = &[
+            FidelityKey::number("tol", "a tolerance").between(0.0, 1.0),
+            FidelityKey::number("threads", "threads").whole(1.0, 64.0),
+            FidelityKey::number("damping", "damping (1/s)").at_least(0.0),
+            FidelityKey::number("offset", "any offset (m)"),
+        ];
+        assert_eq!(KEYS[0].values(), "number in (0, 1)");
+        assert_eq!(KEYS[1].values(), "integer in 1..=64");
+        assert_eq!(KEYS[2].values(), "number >= 0");
+        assert_eq!(KEYS[3].values(), "number");
+        let check = |pair: &str| Fidelity::parse_pairs(&[pair]).unwrap().validate_extras(KEYS);
+        for ok in ["tol=0.5", "threads=2", "damping=0", "offset=-3"] {
+            assert!(check(ok).is_ok(), "{ok}");
+        }
+        for (bad, says) in [
+            ("tol=0", "must be a number in (0, 1), got 0"),
+            ("tol=1", "got 1"),
+            ("threads=1.5", "must be an integer in 1..=64, got 1.5"),
+            ("threads=65", "got 65"),
+            ("damping=-1", "must be a number >= 0, got -1"),
+        ] {
+            let e = check(bad).unwrap_err();
+            assert!(e.0.contains(says), "{bad}: {e}");
         }
     }
 }

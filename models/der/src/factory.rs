@@ -37,19 +37,22 @@ const KEYS: &[FidelityKey] = &[
         "dynamic_twist",
         "0 = quasi-static twist (default), 1 = rotational inertia rho J |e|",
     ),
-    FidelityKey::number("damping", "mass-proportional viscous damping (1/s), default 0"),
+    FidelityKey::number("damping", "mass-proportional viscous damping (1/s), default 0").at_least(0.0),
     FidelityKey::number(
         "tolerance",
         "Newton tolerance on the update (positions / rod length, angles in rad), default 1e-9",
-    ),
+    )
+    .between(0.0, 1.0),
     FidelityKey::number(
         "friction_creep",
         "stick-slip width of the smoothed friction as a creep speed (m/s), default 1e-6",
-    ),
+    )
+    .above(0.0),
     FidelityKey::number(
         "substep_depth",
-        "largest number of step halvings when Newton fails (integer 0..=20), default 6 (dt/64)",
-    ),
+        "largest number of step halvings when Newton fails, default 6 (dt/64)",
+    )
+    .whole(0.0, 20.0),
 ];
 
 /// The names of `integrator`, as the rod's integrators.
@@ -133,31 +136,11 @@ impl ModelFactory for DerFactory {
         if !(dt > 0.0 && dt.is_finite()) {
             return Err(BuildError::bad("dt", format!("must be > 0 s, got {dt}")));
         }
+        // Ranges are declared on the keys (KEYS) and checked by `resolve`.
         let damping = settings.number_or("damping", 0.0);
-        if !(damping >= 0.0 && damping.is_finite()) {
-            return Err(BuildError::bad("damping", format!("must be >= 0 1/s, got {damping}")));
-        }
         let tolerance = settings.number_or("tolerance", 1e-9);
-        if !(tolerance > 0.0 && tolerance < 1.0) {
-            return Err(BuildError::bad(
-                "tolerance",
-                format!("must be in (0, 1), got {tolerance}"),
-            ));
-        }
         let creep = settings.number_or("friction_creep", DEFAULT_FRICTION_CREEP);
-        if !(creep > 0.0 && creep.is_finite()) {
-            return Err(BuildError::bad(
-                "friction_creep",
-                format!("must be > 0 m/s, got {creep}"),
-            ));
-        }
         let depth = settings.number_or("substep_depth", DEFAULT_SUBSTEP_DEPTH as f64);
-        if !(0.0..=20.0).contains(&depth) || depth.fract() != 0.0 {
-            return Err(BuildError::bad(
-                "substep_depth",
-                format!("must be an integer in 0..=20, got {depth}"),
-            ));
-        }
         rod.params = DerParams {
             integrator: settings.pick("integrator", INTEGRATORS, Integrator::BackwardEuler)?,
             twist: if settings.switch("dynamic_twist", false) {

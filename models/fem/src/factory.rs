@@ -53,7 +53,7 @@ const KEYS: &[FidelityKey] = &[
             Choice::new("auto", "whichever of AMD and nested dissection fills less (default)"),
         ],
     ),
-    FidelityKey::number("cg_tol", "PCG relative residual tolerance (default 1e-8)"),
+    FidelityKey::number("cg_tol", "PCG relative residual tolerance (default 1e-8)").between(0.0, 1.0),
     FidelityKey::switch(
         "factor_reuse",
         "Cholesky: 1 (default) = while Jacobian blocks changed, CG preconditioned by the last factor (refactor when it ages), 0 = refactor whenever a block changed",
@@ -61,7 +61,7 @@ const KEYS: &[FidelityKey] = &[
     FidelityKey::number(
         "reuse_tol",
         "Cholesky with factor_reuse: relative residual of the stale-factor PCG (default 1e-6)",
-    ),
+    ).between(0.0, 1.0),
     FidelityKey::switch(
         "reuse_f32",
         "Cholesky with factor_reuse: 1 (default) = the stale-factor PCG applies an f32 copy of the factor, two-way parallel (CG in f64, same tolerance), 0 = the f64 factor (faer's sequential solve)",
@@ -69,17 +69,17 @@ const KEYS: &[FidelityKey] = &[
     FidelityKey::number(
         "lazy_threshold",
         "lazy Jacobian: rebuild an element's block when its rotation moved more than this (rad); default 0 = always",
-    ),
-    FidelityKey::number("rayleigh_mass", "Rayleigh damping alpha (1/s), default 0"),
-    FidelityKey::number("rayleigh_stiffness", "Rayleigh damping beta (s), default 0"),
+    ).at_least(0.0),
+    FidelityKey::number("rayleigh_mass", "Rayleigh damping alpha (1/s), default 0").at_least(0.0),
+    FidelityKey::number("rayleigh_stiffness", "Rayleigh damping beta (s), default 0").at_least(0.0),
     FidelityKey::number(
         "threads",
         "assembly threads (default 2); results are identical for any count",
-    ),
+    ).whole(1.0, 64.0),
     FidelityKey::number(
         "contact_stiffness",
         "sphere contact penalty factor kappa: node stiffness kappa E/(1-nu^2) sqrt(node boundary area) (default 100; penetration ~ contact strain / kappa of the mesh size)",
-    ),
+    ).above(0.0),
 ];
 
 /// The names of `material_law`, `integrator` and `ordering`, as the model's values.
@@ -108,40 +108,22 @@ impl FemFactory {
         let law = s.pick("material_law", LAWS, Law::Corotational)?;
         let integrator = s.pick("integrator", INTEGRATORS, Integrator::Newmark)?;
         let solver = linear_solver(s)?;
-        let nonneg = |name: &str| -> Result<f64, BuildError> {
-            let v = s.number_or(name, 0.0);
-            if v >= 0.0 {
-                Ok(v)
-            } else {
-                Err(BuildError::bad(name, format!("must be >= 0, got {v}")))
-            }
-        };
+        // Ranges are declared on the keys (KEYS) and checked by `resolve`.
+        let nonneg = |name: &str| s.number_or(name, 0.0);
         let reuse_tol = s.number_or("reuse_tol", REUSE_TOL);
-        if !(reuse_tol > 0.0 && reuse_tol < 1.0) {
-            return Err(BuildError::bad(
-                "reuse_tol",
-                format!("must be in (0, 1), got {reuse_tol}"),
-            ));
-        }
-        let threads = s.whole_in("threads", 2, 1..=64)?;
+        let threads = s.number_or("threads", 2.0) as usize;
         let contact_stiffness = s.number_or("contact_stiffness", DEFAULT_KAPPA);
-        if !(contact_stiffness > 0.0 && contact_stiffness.is_finite()) {
-            return Err(BuildError::bad(
-                "contact_stiffness",
-                format!("must be > 0 and finite, got {contact_stiffness}"),
-            ));
-        }
         let p = DynParams {
             contact_stiffness,
             law,
             integrator,
             solver,
-            lazy_threshold: nonneg("lazy_threshold")?,
+            lazy_threshold: nonneg("lazy_threshold"),
             factor_reuse: s.switch("factor_reuse", true),
             reuse_tol,
             reuse_f32: s.switch("reuse_f32", true),
-            rayleigh_mass: nonneg("rayleigh_mass")?,
-            rayleigh_stiffness: nonneg("rayleigh_stiffness")?,
+            rayleigh_mass: nonneg("rayleigh_mass"),
+            rayleigh_stiffness: nonneg("rayleigh_stiffness"),
             iterations: full.iterations.unwrap_or(1),
             tol: 1e-9,
             threads,
@@ -207,9 +189,6 @@ impl ModelFactory for FemFactory {
 fn linear_solver(s: &Settings) -> Result<LinearSolver, BuildError> {
     let ordering = s.pick("ordering", ORDERINGS, Ordering::Auto)?;
     let cg_tol = s.number_or("cg_tol", 1e-8);
-    if !(cg_tol > 0.0 && cg_tol < 1.0) {
-        return Err(BuildError::bad("cg_tol", format!("must be in (0, 1), got {cg_tol}")));
-    }
     let cg = s.pick("solver", &[("direct", false), ("cg", true)], false)?;
     Ok(if cg {
         LinearSolver::Cg {

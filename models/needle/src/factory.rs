@@ -17,7 +17,8 @@ pub const DEFAULT_DT: f64 = 1e-3;
 const KEYS: &[FidelityKey] = &[FidelityKey::number(
     "threads",
     "tissue assembly threads (default 2); results are identical for any count",
-)];
+)
+.whole(1.0, 64.0)];
 
 /// The `needle` model: FEM tissue + DER needle, embedded coupling points,
 /// stick-slip friction by the seed's LCP.
@@ -87,7 +88,8 @@ impl ModelFactory for NeedleFactory {
         // Euler the run completes, 1.03 LCP trials per step.
         let params = DynParams {
             integrator: Integrator::BackwardEuler,
-            threads: settings.whole_in("threads", 2, 1..=64)?,
+            // Range declared on the key (KEYS), checked by `resolve`.
+            threads: settings.number_or("threads", 2.0) as usize,
             ..DynParams::default()
         };
         let fem =
