@@ -142,6 +142,23 @@ fn split_lattice(
 /// Node `(i, j, k)` has index `i + (cells[0] + 1) * (j + (cells[1] + 1) * k)`.
 /// A zero cell count is raised to one.
 pub fn block(size: Vec3, cells: [usize; 3]) -> TetMesh {
+    block_split(size, cells, false)
+}
+
+/// [`block`] with each cell's six-tet split mirrored across the cell faces
+/// whose index along that axis is odd, so that the mesh is symmetric under
+/// reflection in every grid plane through a node with even indices. The
+/// plain [`block`] splits every cell along the same diagonal, and a line
+/// load along a grid line then drifts sideways along that diagonal
+/// (measured on the needle scenes). Same nodes and node numbering as
+/// [`block`]; shared faces stay conforming (a mirrored neighbour splits the
+/// shared face along the same diagonal).
+pub fn block_mirrored(size: Vec3, cells: [usize; 3]) -> TetMesh {
+    block_split(size, cells, true)
+}
+
+/// The lattice of [`block`], its cells split as [`split_lattice`] does.
+fn block_split(size: Vec3, cells: [usize; 3], mirror: bool) -> TetMesh {
     let c = cells.map(|n| n.max(1));
     let (nx, ny, nz) = (c[0] + 1, c[1] + 1, c[2] + 1);
     let mut nodes = Vec::with_capacity(nx * ny * nz);
@@ -156,24 +173,8 @@ pub fn block(size: Vec3, cells: [usize; 3]) -> TetMesh {
             }
         }
     }
-    let tets = lattice_tets(&nodes, c, |i, j, k| i + nx * (j + ny * k));
+    let tets = split_lattice(&nodes, c, mirror, |i, j, k| i + nx * (j + ny * k));
     TetMesh { nodes, tets }
-}
-
-/// [`block`] with each cell's six-tet split mirrored across the cell faces
-/// whose index along that axis is odd, so that the mesh is symmetric under
-/// reflection in every grid plane through a node with even indices. The
-/// plain [`block`] splits every cell along the same diagonal, and a line
-/// load along a grid line then drifts sideways along that diagonal
-/// (measured on the needle scenes). Same nodes and node numbering as
-/// [`block`]; shared faces stay conforming (a mirrored neighbour splits the
-/// shared face along the same diagonal).
-pub fn block_mirrored(size: Vec3, cells: [usize; 3]) -> TetMesh {
-    let mut m = block(size, cells);
-    let c = cells.map(|n| n.max(1));
-    let (nx, ny) = (c[0] + 1, c[1] + 1);
-    m.tets = split_lattice(&m.nodes, c, true, |i, j, k| i + nx * (j + ny * k));
-    m
 }
 
 /// Full thick-walled tube about the z axis: radii `inner..outer` (m),

@@ -109,7 +109,6 @@ impl FemFactory {
         let integrator = s.pick("integrator", INTEGRATORS, Integrator::Newmark)?;
         let solver = linear_solver(s)?;
         // Ranges are declared on the keys (KEYS) and checked by `resolve`.
-        let nonneg = |name: &str| s.number_or(name, 0.0);
         let reuse_tol = s.number_or("reuse_tol", REUSE_TOL);
         let threads = s.number_or("threads", 2.0) as usize;
         let contact_stiffness = s.number_or("contact_stiffness", DEFAULT_KAPPA);
@@ -118,12 +117,12 @@ impl FemFactory {
             law,
             integrator,
             solver,
-            lazy_threshold: nonneg("lazy_threshold"),
+            lazy_threshold: s.number_or("lazy_threshold", 0.0),
             factor_reuse: s.switch("factor_reuse", true),
             reuse_tol,
             reuse_f32: s.switch("reuse_f32", true),
-            rayleigh_mass: nonneg("rayleigh_mass"),
-            rayleigh_stiffness: nonneg("rayleigh_stiffness"),
+            rayleigh_mass: s.number_or("rayleigh_mass", 0.0),
+            rayleigh_stiffness: s.number_or("rayleigh_stiffness", 0.0),
             iterations: full.iterations.unwrap_or(1),
             tol: 1e-9,
             threads,

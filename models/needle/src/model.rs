@@ -152,8 +152,7 @@ impl NeedleModel {
             state: State::Static,
         });
         self.touching = true;
-        self.add_shaft_points(&xt, tip_a);
-        self.shaft.iter_mut().for_each(|p| p.state = State::Static);
+        self.add_shaft_points(&xt, tip_a, State::Static);
         self
     }
 
@@ -440,14 +439,14 @@ impl NeedleModel {
             });
             self.touching = true;
         }
-        self.add_shaft_points(&xt, tip_a);
+        self.add_shaft_points(&xt, tip_a, State::DynamicPlus);
     }
 
     /// Shaft points every `spacing` behind the last one (or the entry), each
     /// placed once the tip is half a spacing past it so that no two points
     /// crowd (nearly equal rows of `W`); the tissue point is the one on the
-    /// needle there.
-    fn add_shaft_points(&mut self, xt: &[Vec3], tip_a: f64) {
+    /// needle there, its friction state guessed `state`.
+    fn add_shaft_points(&mut self, xt: &[Vec3], tip_a: f64, state: State) {
         let Some(entry) = self.entry_arclength_at(xt) else {
             return;
         };
@@ -458,7 +457,7 @@ impl NeedleModel {
                 self.shaft.push(Point {
                     tissue,
                     arclength: from,
-                    state: State::DynamicPlus,
+                    state,
                 });
             }
         }

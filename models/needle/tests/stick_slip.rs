@@ -6,7 +6,7 @@
 
 mod common;
 
-use surgbench_core::{Body, Fidelity, Model, ModelFactory, Scene};
+use surgbench_core::{Body, Fidelity, Model, ModelFactory, Scene, TissueBody};
 use surgbench_needle::NeedleFactory;
 
 const F_PERLEN: f64 = 20.0;
@@ -32,15 +32,20 @@ struct Sample {
 fn run(load: &[(f64, f64)]) -> Vec<Sample> {
     let scene = common::pulled_scene(DEPTH, [8, 4, 4], F_PERLEN, F0 / AREA, load);
     let mut m = NeedleFactory.build(&scene, &Fidelity::default()).unwrap();
-    let dt = m.dt();
-    let n = (scene.duration / dt).round() as usize;
-    (1..=n).map(|i| sample(&scene, m.as_mut(), i as f64 * dt)).collect()
-}
-
-fn sample(scene: &Scene, m: &mut dyn Model, t: f64) -> Sample {
     let Body::Tissue(tissue) = &scene.bodies[1] else {
         unreachable!("the block is the second body")
     };
+    // The mesh node at the entry, on the needle's axis.
+    let entry = tissue.mesh.nodes.iter().position(|p| p.norm() < 1e-12).unwrap();
+    let dt = m.dt();
+    let n = (scene.duration / dt).round() as usize;
+    (1..=n)
+        .map(|i| sample(&scene, tissue, entry, m.as_mut(), i as f64 * dt))
+        .collect()
+}
+
+/// Step `m` to `t` (s) and sample it; `entry`: the block's node at the entry.
+fn sample(scene: &Scene, tissue: &TissueBody, entry: usize, m: &mut dyn Model, t: f64) -> Sample {
     let cmd = scene.control.command_at(t);
     m.step(m.dt(), &cmd).unwrap();
     let o = m.observe();
@@ -54,7 +59,6 @@ fn sample(scene: &Scene, m: &mut dyn Model, t: f64) -> Sample {
             -0.5 * cmd.load * p * (b - a).cross(&(c - a)).x
         })
         .sum();
-    let entry = tissue.mesh.nodes.iter().position(|p| p.norm() < 1e-12).unwrap();
     let diag = m.diagnostics();
     Sample {
         pull,
