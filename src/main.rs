@@ -27,6 +27,7 @@ use surgbench_comparisons::outdir;
 use surgbench_comparisons::resolve::ResolvedRun;
 use surgbench_comparisons::runner::{RunOptions, RunSummary};
 use surgbench_comparisons::scenario::parse_overrides;
+use surgbench_comparisons::user_mesh::UserMesh;
 use surgbench_comparisons::{UsageError, registry};
 use surgbench_reports::Status;
 
@@ -122,16 +123,29 @@ struct RunSpec {
     /// Fidelity knob, KEY=VALUE: segments, mesh_level, dt, iterations or a model extra (repeatable).
     #[arg(long = "fidelity", value_name = "KEY=VALUE")]
     fidelity: Vec<String>,
+    /// Build the scene on this file instead of the scenario's own geometry:
+    /// a tetrahedral tissue mesh (.msh Gmsh 4.x, .mesh Medit) or a closed
+    /// vessel surface (.stl, .obj), for the scenarios `surgbench list` marks.
+    #[arg(long, value_name = "FILE")]
+    mesh: Option<PathBuf>,
+    /// Factor from the --mesh file's units to metres (1e-3 for millimetres).
+    #[arg(long, value_name = "FACTOR", default_value_t = 1.0, requires = "mesh")]
+    mesh_scale: f64,
 }
 
 impl RunSpec {
     /// Resolve and validate the run once.
     fn resolve(&self) -> Result<ResolvedRun, UsageError> {
+        let mesh = match &self.mesh {
+            Some(path) => Some(UserMesh::load(path, self.mesh_scale)?),
+            None => None,
+        };
         ResolvedRun::from_pairs(
             &self.scenario,
             &self.model,
             &parse_overrides(&self.params)?,
             &self.fidelity,
+            mesh,
         )
     }
 }
@@ -265,6 +279,9 @@ fn list() {
     for s in registry::scenarios() {
         say!("  {:<22} [{}] {}", s.id(), s.family().name(), s.description());
         say!("  {:<22} reference: {}", "", s.reference());
+        if let Some(k) = s.info().mesh {
+            say!("  {:<22} --mesh FILE: {}", "", k.describe());
+        }
         for p in s.params() {
             say!(
                 "  {:<24}{:<16} = {:<10} {:<7} {}",

@@ -3,7 +3,8 @@
 //! Scenarios ([`scenarios`]) with their references ([`references`], data in [`datasets`]), the model
 //! registry ([`registry`]), the single-run runner with timing and watchdogs
 //! ([`runner`]), comparisons as data ([`comparison`]) and the batch runner
-//! that isolates each run in a child process ([`batch`]).
+//! that isolates each run in a child process ([`batch`]). A user's own
+//! geometry reaches the scenarios that take one through [`user_mesh`].
 
 pub mod batch;
 pub mod comparison;
@@ -21,5 +22,6 @@ pub mod resolve;
 pub mod runner;
 pub mod scenario;
 pub mod scenarios;
+pub mod user_mesh;
 
 pub use scenario::{Metrics, Params, Scenario, ScenarioInfo, ScenarioRun, Scorer, UsageError};

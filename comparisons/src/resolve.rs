@@ -11,6 +11,7 @@
 use crate::registry;
 use crate::runner::{self, RunOptions, RunSummary};
 use crate::scenario::{Params, Scenario, ScenarioRun, UsageError};
+use crate::user_mesh::UserMesh;
 use surgbench_core::{BuildError, Fidelity, Model, ModelFactory, Scene, Setting, Settings};
 
 /// A scenario x model x parameters x fidelity, ready to build and run.
@@ -30,6 +31,8 @@ pub struct ResolvedRun {
     pub support: Result<Settings, String>,
     /// The full fidelity: the model's defaults for the scene overlaid with the request.
     pub fidelity: Fidelity,
+    /// The user's geometry the scene was built on (`--mesh`), if any.
+    pub mesh: Option<UserMesh>,
 }
 
 impl ResolvedRun {
@@ -44,13 +47,33 @@ impl ResolvedRun {
         overrides: &[(String, f64)],
         fidelity: Fidelity,
     ) -> Result<Self, UsageError> {
+        Self::on_mesh(scenario, model, overrides, fidelity, None)
+    }
+
+    /// [`ResolvedRun::new`] with the scene built on the user's geometry
+    /// `mesh` (`--mesh`): a scenario that takes none, a mesh of the wrong
+    /// kind, or a `mesh_level` knob beside a mesh (the file fixes the mesh)
+    /// is a [`UsageError`].
+    pub fn on_mesh(
+        scenario: &str,
+        model: &str,
+        overrides: &[(String, f64)],
+        fidelity: Fidelity,
+        mesh: Option<UserMesh>,
+    ) -> Result<Self, UsageError> {
         let sc = registry::scenario(scenario)?;
+        if let (Some(m), Some(level)) = (&mesh, fidelity.mesh_level) {
+            return Err(UsageError(format!(
+                "mesh_level={level} does not apply to a mesh read from a file ({}); leave it out",
+                m.path.display()
+            )));
+        }
         let factory = registry::model(model)?;
         let params = Params::resolve(sc.id(), sc.params(), overrides)?;
         fidelity
             .validate_extras(factory.fidelity_keys())
             .map_err(|e| UsageError(format!("model `{model}`: {}", e.0)))?;
-        let run = sc.instantiate_at(&params, &fidelity)?;
+        let run = sc.instantiate_with(&params, &fidelity, mesh.as_ref())?;
         let support = match surgbench_core::resolve(factory, run.scene(), &fidelity) {
             Ok(settings) => Ok(settings),
             Err(BuildError::Unsupported(u)) => Err(u.reason),
@@ -72,18 +95,20 @@ impl ResolvedRun {
             run,
             support,
             fidelity: full,
+            mesh,
         })
     }
 
-    /// [`ResolvedRun::new`] from `KEY=VALUE` fidelity pairs.
+    /// [`ResolvedRun::on_mesh`] from `KEY=VALUE` fidelity pairs.
     pub fn from_pairs<S: AsRef<str>>(
         scenario: &str,
         model: &str,
         overrides: &[(String, f64)],
         fidelity: &[S],
+        mesh: Option<UserMesh>,
     ) -> Result<Self, UsageError> {
         let fid = Fidelity::parse_pairs(fidelity).map_err(|e| UsageError(e.0))?;
-        Self::new(scenario, model, overrides, fid)
+        Self::on_mesh(scenario, model, overrides, fid, mesh)
     }
 
     /// [`ResolvedRun::new`] from fidelity knobs by name.
@@ -123,7 +148,7 @@ impl ResolvedRun {
 
     /// Run it with the runner (timing, watchdogs, scoring).
     pub fn run(&self, opts: &RunOptions) -> Result<RunSummary, UsageError> {
-        runner::run_checked(
+        let mut summary = runner::run_checked(
             self.scenario,
             &self.params,
             &self.run,
@@ -131,6 +156,8 @@ impl ResolvedRun {
             self.support.as_ref().map_err(String::clone),
             &self.fidelity,
             opts,
-        )
+        )?;
+        summary.mesh = self.mesh.as_ref().map(|m| m.path.display().to_string());
+        Ok(summary)
     }
 }

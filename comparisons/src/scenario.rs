@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 use surgbench_core::{ControlTimeline, Family, Fidelity, Observation, Scene};
 
 pub use crate::error::UsageError;
+pub use crate::user_mesh::{MeshKind, UserMesh};
 
 /// Admissible range of a parameter.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -180,6 +181,11 @@ impl Params {
             Some(v) => *v,
             None => panic!("scenario asked for undeclared parameter `{name}`"),
         }
+    }
+
+    /// Whether the user gave `name` (rather than taking its default).
+    pub fn is_overridden(&self, name: &str) -> bool {
+        self.overridden.iter().any(|(k, _)| k == name)
     }
 
     /// All resolved values.
@@ -441,6 +447,9 @@ pub struct ScenarioInfo {
     pub sweep: Sweep,
     /// How many of the sweep's first fidelities `--quick` runs.
     pub quick: usize,
+    /// The geometry the scenario can take from a user's file instead of
+    /// building its own (`run-one --mesh FILE`); `None` for most.
+    pub mesh: Option<MeshKind>,
 }
 
 /// Everything a scenario's builder reads besides its typed parameters.
@@ -453,6 +462,9 @@ pub struct Inputs<'a> {
     pub fidelity: &'a Fidelity,
     /// The folder holding `phantom/` and `reference/` data.
     pub datasets: &'a Path,
+    /// The user's geometry (`--mesh`), if given; only scenarios whose
+    /// [`ScenarioInfo::mesh`] says they take one are handed one.
+    pub mesh: Option<&'a UserMesh>,
 }
 
 /// A scenario of the catalogue. [`Declared`] is the usual implementation:
@@ -465,7 +477,18 @@ pub trait Scenario: Send + Sync {
     /// requested fidelity: the harness always calls this one. Scenarios
     /// whose geometry depends on a fidelity knob (tissue meshes built at
     /// `mesh_level`) read it; the others ignore it.
-    fn instantiate_at(&self, params: &Params, fidelity: &Fidelity) -> Result<ScenarioRun, UsageError>;
+    fn instantiate_at(&self, params: &Params, fidelity: &Fidelity) -> Result<ScenarioRun, UsageError> {
+        self.instantiate_with(params, fidelity, None)
+    }
+    /// [`Scenario::instantiate_at`] on the user's geometry `mesh` (if any)
+    /// instead of the scenario's own: a mesh the scenario does not take (see
+    /// [`ScenarioInfo::mesh`]) is a [`UsageError`].
+    fn instantiate_with(
+        &self,
+        params: &Params,
+        fidelity: &Fidelity,
+        mesh: Option<&UserMesh>,
+    ) -> Result<ScenarioRun, UsageError>;
 
     /// [`Scenario::instantiate_at`] at the default fidelity.
     fn instantiate(&self, params: &Params) -> Result<ScenarioRun, UsageError> {
@@ -529,7 +552,15 @@ impl<P: ParamSet> Scenario for Declared<P> {
     fn info(&self) -> &ScenarioInfo {
         &self.info
     }
-    fn instantiate_at(&self, params: &Params, fidelity: &Fidelity) -> Result<ScenarioRun, UsageError> {
+    fn instantiate_with(
+        &self,
+        params: &Params,
+        fidelity: &Fidelity,
+        mesh: Option<&UserMesh>,
+    ) -> Result<ScenarioRun, UsageError> {
+        if let Some(m) = mesh {
+            crate::user_mesh::check_kind(self.info.id, self.info.mesh, m)?;
+        }
         let datasets = self
             .datasets
             .map(PathBuf::from)
@@ -538,6 +569,7 @@ impl<P: ParamSet> Scenario for Declared<P> {
             params,
             fidelity,
             datasets: &datasets,
+            mesh,
         };
         (self.build)(&P::of(params), &inputs)
     }

@@ -299,6 +299,10 @@ pub struct RunSummary {
     pub reference_tip: Option<[f64; 3]>,
     /// Repeats run.
     pub repeats: usize,
+    /// The user's mesh file the scene was built on (`run-one --mesh`), as
+    /// given; absent when the scenario built its own geometry.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mesh: Option<String>,
     /// Time series (not in `summary.json`; written to `observables.csv`).
     #[serde(skip)]
     pub series: Vec<Sample>,

@@ -14,7 +14,8 @@ pub const ROD_AT_REST: Declared<RestParams> = Declared {
         primary_error: "tip_error_m",
         params: RestParams::SPECS,
         sweep: Sweep::Knob("segments", &[10.0, 20.0, 40.0]),
-        quick: 2, // --quick runs the first two of the sweep
+        quick: 2,   // --quick runs the first two of the sweep
+        mesh: None, // or Some(MeshKind::Tets): it takes `run-one --mesh FILE`
     },
     datasets: None, // reference data from datasets/ (this one needs none)
     build,

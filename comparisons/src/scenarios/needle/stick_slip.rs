@@ -154,6 +154,7 @@ pub const NEEDLE_STICK_SLIP: Declared<StickSlipParams> = Declared {
         params: StickSlipParams::SPECS,
         sweep: LEVELS,
         quick: 1,
+        mesh: None,
     },
     datasets: None,
     build,

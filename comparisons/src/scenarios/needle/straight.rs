@@ -161,6 +161,7 @@ pub const NEEDLE_STRAIGHT: Declared<StraightParams> = Declared {
         params: StraightParams::SPECS,
         sweep: LEVELS,
         quick: 1,
+        mesh: None,
     },
     datasets: None,
     build,

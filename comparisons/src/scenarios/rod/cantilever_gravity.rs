@@ -21,6 +21,7 @@ pub const CANTILEVER_GRAVITY: Declared<GravityParams> = Declared {
         params: GravityParams::SPECS,
         sweep: SEGMENTS,
         quick: 3,
+        mesh: None,
     },
     datasets: None,
     build,

@@ -20,6 +20,7 @@ pub const CANTILEVER_TIP_LOAD: Declared<TipLoadParams> = Declared {
         params: TipLoadParams::SPECS,
         sweep: SEGMENTS,
         quick: 3,
+        mesh: None,
     },
     datasets: None,
     build,

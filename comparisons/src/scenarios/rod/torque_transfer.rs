@@ -21,6 +21,7 @@ pub const TORQUE_TRANSFER: Declared<TorqueParams> = Declared {
         params: TorqueParams::SPECS,
         sweep: SEGMENTS,
         quick: 3,
+        mesh: None,
     },
     datasets: None,
     build,

@@ -60,6 +60,7 @@ pub const BLOCK_COMPRESSION: Declared<BlockParams> = Declared {
         params: BlockParams::SPECS,
         sweep: LEVELS,
         quick: 3,
+        mesh: None,
     },
     datasets: None,
     build,

@@ -102,6 +102,7 @@ pub const LAME_TUBE: Declared<LameParams> = Declared {
         params: LameParams::SPECS,
         sweep: LEVELS,
         quick: 3,
+        mesh: None,
     },
     datasets: None,
     build,

@@ -1,7 +1,9 @@
 //! Tissue statics: block compression, Lamé tube, volume preservation under
 //! squash and twist, the Truth Cube phantom, a spherical catheter tip
 //! indenting a vessel-wall sector (frictionless contact) and its bonded
-//! flat-punch companion, and a rigid sphere pressed into a block (Hertz).
+//! flat-punch companion, a rigid sphere pressed into a block (Hertz), and
+//! the patch test (a homogeneous deformation on the whole boundary of the
+//! built-in cube or of a user's mesh).
 //!
 //! Shared conventions (SI units: m, kg, s, N, Pa, rad):
 //! * every scene holds exactly one [`TissueBody`], no gravity, and is static:
@@ -30,6 +32,7 @@
 mod block_compression;
 mod curve;
 mod lame_tube;
+mod patch_test;
 mod sphere_indentation;
 mod truth_cube;
 mod volume_preservation;
@@ -40,6 +43,7 @@ use curve::{Curve, ForceCurve};
 
 pub use block_compression::{BLOCK_COMPRESSION, BlockParams};
 pub use lame_tube::{LAME_TUBE, LameParams};
+pub use patch_test::{PATCH_TEST, PatchParams};
 pub use sphere_indentation::{SPHERE_DT, SPHERE_INDENTATION, SphereParams, sphere_block_mesh, sphere_grading};
 pub use truth_cube::{CubeFrame, TRUTH_CUBE, TRUTH_CUBE_EDGE, TruthParams, locate};
 pub use volume_preservation::{VOLUME_PRESERVATION, VolumeParams, squash_twist};
@@ -84,6 +88,7 @@ pub fn all() -> Vec<&'static dyn Scenario> {
         &WALL_INDENTATION,
         &WALL_PUNCH,
         &SPHERE_INDENTATION,
+        &PATCH_TEST,
     ]
 }
 

@@ -209,6 +209,7 @@ pub const SPHERE_INDENTATION: Declared<SphereParams> = Declared {
         params: SphereParams::SPECS,
         sweep: CONTACT_LEVELS,
         quick: 2,
+        mesh: None,
     },
     datasets: None,
     build,

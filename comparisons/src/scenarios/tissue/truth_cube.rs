@@ -227,6 +227,7 @@ pub const TRUTH_CUBE: Declared<TruthParams> = Declared {
         params: TruthParams::SPECS,
         sweep: LEVELS,
         quick: 3,
+        mesh: None,
     },
     datasets: None,
     build,

@@ -83,6 +83,7 @@ pub const VOLUME_PRESERVATION: Declared<VolumeParams> = Declared {
         params: VolumeParams::SPECS,
         sweep: LEVELS,
         quick: 3,
+        mesh: None,
     },
     datasets: None,
     build,

@@ -175,6 +175,7 @@ pub const WALL_INDENTATION: Declared<WallParams> = Declared {
         params: WallParams::SPECS,
         sweep: CONTACT_LEVELS,
         quick: 2,
+        mesh: None,
     },
     datasets: None,
     build,

@@ -163,6 +163,7 @@ pub const WALL_PUNCH: Declared<PunchParams> = Declared {
         params: PunchParams::SPECS,
         sweep: LEVELS,
         quick: 3,
+        mesh: None,
     },
     datasets: None,
     build,

@@ -171,6 +171,7 @@ pub const ARCH_INSERTION: Declared<ArchParams> = Declared {
         params: ArchParams::SPECS,
         sweep: Sweep::Knob("segments", &[25.0, 50.0, 100.0, 200.0]),
         quick: 3,
+        mesh: None,
     },
     datasets: None,
     build,

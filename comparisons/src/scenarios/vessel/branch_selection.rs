@@ -111,6 +111,7 @@ pub const BRANCH_SELECTION: Declared<BranchParams> = Declared {
         params: BranchParams::SPECS,
         sweep: Sweep::Knob("segments", &[20.0, 40.0, 80.0]),
         quick: 3,
+        mesh: None,
     },
     datasets: None,
     build,

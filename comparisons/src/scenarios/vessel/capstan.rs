@@ -140,6 +140,7 @@ pub const CAPSTAN: Declared<CapstanParams> = Declared {
         params: CapstanParams::SPECS,
         sweep: Sweep::Knob("segments", &[20.0, 40.0, 80.0]),
         quick: 3,
+        mesh: None,
     },
     datasets: None,
     build,

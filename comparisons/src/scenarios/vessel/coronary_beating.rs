@@ -91,6 +91,7 @@ pub const CORONARY_BEATING: Declared<BeatingParams> = Declared {
         params: BeatingParams::SPECS,
         sweep: Sweep::Knob("segments", &[30.0, 60.0, 120.0]),
         quick: 3,
+        mesh: None,
     },
     datasets: None,
     build,

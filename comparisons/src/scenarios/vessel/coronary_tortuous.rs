@@ -129,6 +129,7 @@ pub const CORONARY_TORTUOUS: Declared<CoronaryParams> = Declared {
         params: CoronaryParams::SPECS,
         sweep: Sweep::Knob("segments", &[30.0, 60.0, 120.0]),
         quick: 3,
+        mesh: None,
     },
     datasets: None,
     build,

@@ -106,6 +106,7 @@ pub const FLOW_DRIFT: Declared<FlowParams> = Declared {
         params: FlowParams::SPECS,
         sweep: Sweep::Knob("segments", &[5.0, 10.0, 20.0, 40.0]),
         quick: 3,
+        mesh: None,
     },
     datasets: None,
     build,

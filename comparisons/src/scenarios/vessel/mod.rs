@@ -18,7 +18,8 @@
 //! serves each run and each repeat.
 //!
 //! Scenarios: `arch-insertion`, `branch-selection`, `flow-drift`,
-//! `capstan`, `stick-slip-threshold`, `coronary-tortuous`, `coronary-beating`.
+//! `capstan`, `stick-slip-threshold`, `coronary-tortuous`, `coronary-beating`,
+//! `vessel-mesh-insertion` (any lumen given as a closed surface: `--mesh`).
 
 mod arch_insertion;
 mod branch_selection;
@@ -26,6 +27,7 @@ mod capstan;
 mod coronary_beating;
 mod coronary_tortuous;
 mod flow_drift;
+mod mesh_insertion;
 mod stick_slip_threshold;
 
 pub use arch_insertion::{ARCH_INSERTION, ArchParams};
@@ -34,6 +36,7 @@ pub use capstan::{CAPSTAN, CapstanParams};
 pub use coronary_beating::{BeatingParams, CORONARY_BEATING};
 pub use coronary_tortuous::{CORONARY_TORTUOUS, CoronaryParams};
 pub use flow_drift::{FLOW_DRIFT, FlowParams};
+pub use mesh_insertion::{MESH_INSERTION, MeshInsertionParams, builtin_surface, builtin_tube};
 pub use stick_slip_threshold::{STICK_SLIP_THRESHOLD, StickParams};
 
 use crate::scenario::{FeedLimit, Metrics, ParamSpec, Range, Reference, Scenario, ScenarioRun, Scorer, UsageError};
@@ -52,6 +55,7 @@ pub fn all() -> Vec<&'static dyn Scenario> {
         &STICK_SLIP_THRESHOLD,
         &CORONARY_TORTUOUS,
         &CORONARY_BEATING,
+        &MESH_INSERTION,
     ]
 }
 

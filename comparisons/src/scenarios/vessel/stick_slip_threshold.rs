@@ -161,6 +161,7 @@ pub const STICK_SLIP_THRESHOLD: Declared<StickParams> = Declared {
         params: StickParams::SPECS,
         sweep: Sweep::Knob("segments", &[10.0, 20.0, 40.0, 80.0]),
         quick: 3,
+        mesh: None,
     },
     datasets: None,
     build,

@@ -446,13 +446,7 @@ impl SweptTube {
     /// along the lumen), local y/z any orthonormal completion that is fixed
     /// for a given tangent.
     pub fn frame_at(&self, s: f64) -> Iso3 {
-        let t = self.tangent_at(s);
-        let helper = if t.z.abs() < 0.9 { Vec3::z() } else { Vec3::x() };
-        let y = helper.cross(&t).normalize();
-        let z = t.cross(&y);
-        let m = crate::Mat3::from_columns(&[t, y, z]);
-        let rot = nalgebra::UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(m));
-        Iso3::from_parts(self.point_at(s).into(), rot)
+        frame_along(&self.point_at(s), &self.tangent_at(s))
     }
 
     /// Project `p` on the centreline (see the type's docs for `phi`).
@@ -595,4 +589,17 @@ impl Sdf for SweptTube {
         let m = proj * dw / h.radial - dds_dp * slope;
         (m + m.transpose()) * 0.5
     }
+}
+
+/// A frame at `origin` (m) with local +x along the unit `tangent` and local
+/// y = helper x tangent (helper: world z, or world x when the tangent is
+/// within ~25 deg of z): the clamp pose of a wire entering along `tangent`.
+pub fn frame_along(origin: &Vec3, tangent: &Vec3) -> Iso3 {
+    let t = *tangent;
+    let helper = if t.z.abs() < 0.9 { Vec3::z() } else { Vec3::x() };
+    let y = helper.cross(&t).normalize();
+    let z = t.cross(&y);
+    let m = crate::Mat3::from_columns(&[t, y, z]);
+    let rot = nalgebra::UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(m));
+    Iso3::from_parts((*origin).into(), rot)
 }

@@ -107,8 +107,9 @@ impl VoxelSdf {
         self.values[i + self.dims[0] * (j + self.dims[1] * k)]
     }
 
-    /// Trilinear value and its analytic gradient at `p` inside the box.
-    fn interp(&self, p: &Vec3) -> (f64, Vec3) {
+    /// The cell holding `p` (clamped into the box) and `p`'s local
+    /// coordinates in it, each in [0, 1].
+    fn cell(&self, p: &Vec3) -> ([usize; 3], [f64; 3]) {
         let g = (p - self.origin) / self.spacing;
         let mut idx = [0usize; 3];
         let mut t = [0.0; 3];
@@ -119,7 +120,12 @@ impl VoxelSdf {
             idx[a] = i;
             t[a] = x - i as f64;
         }
-        let [i, j, k] = idx;
+        (idx, t)
+    }
+
+    /// Trilinear value and its analytic gradient at `p` inside the box.
+    fn interp(&self, p: &Vec3) -> (f64, Vec3) {
+        let ([i, j, k], t) = self.cell(p);
         let [x, y, z] = t;
         let c = |a: usize, b: usize, d: usize| self.at(i + a, j + b, k + d);
         let (c000, c100, c010, c110) = (c(0, 0, 0), c(1, 0, 0), c(0, 1, 0), c(1, 1, 0));
@@ -269,5 +275,25 @@ impl Sdf for VoxelSdf {
         let n = d.norm();
         let (v, g) = self.interp(&q);
         if n > 0.0 { (v + n, d / n) } else { (v, g) }
+    }
+    /// Central differences of the interpolant's gradient over one grid
+    /// spacing `h`, symmetrised (1/m). The interpolant is linear along each
+    /// axis inside a cell, so its own second derivatives miss the curvature
+    /// of the field, which lives in the jumps of the gradient from cell to
+    /// cell; differences over the default's [`HESSIAN_FD_STEP`] see those
+    /// jumps as spikes of order `jump / 1e-6 m` (a Newton contact solve
+    /// then stalls). Over one spacing they see the field's curvature with an
+    /// O(h) error (second derivatives of a smooth field averaged over the
+    /// stencil; the `interpolant_hessian_*` test measures it).
+    fn hessian(&self, p: &Vec3) -> Mat3 {
+        let h = self.spacing;
+        let mut m = Mat3::zeros();
+        for k in 0..3 {
+            let (mut a, mut b) = (*p, *p);
+            a[k] += h;
+            b[k] -= h;
+            m.set_column(k, &((self.gradient(&a) - self.gradient(&b)) / (2.0 * h)));
+        }
+        (m + m.transpose()) * 0.5
     }
 }
