@@ -3,9 +3,11 @@
 //! Scenarios ([`scenarios`]) with their references ([`references`], data in [`datasets`]), the model
 //! registry ([`registry`]), the single-run runner with timing and watchdogs
 //! ([`runner`]), comparisons as data ([`comparison`]) and the batch runner
-//! that isolates each run in a child process ([`batch`]).
+//! that isolates each run in a child process ([`batch`], with [`child`] and
+//! [`interrupt`] so that no child or temporary folder outlives it).
 
 pub mod batch;
+pub mod child;
 pub mod comparison;
 pub mod conformance;
 pub mod datasets;
