@@ -3,7 +3,7 @@
 //! Exit codes: 0 success, 1 a run or write failed at runtime, 2 bad usage
 //! (unknown scenario/model/parameter, out-of-range value, malformed file,
 //! more steps than [`surgbench_comparisons::runner::MAX_STEPS`]); on exit 2
-//! nothing is written. `run` and `run-one` interrupted by SIGINT or
+//! nothing is written. `run`, `run-one` and `gate` interrupted by SIGINT or
 //! SIGTERM stop their child (if any), remove their temporary files, write
 //! nothing and exit 130 or 143; a `run-one` or `haptic` child whose `run`
 //! was killed by SIGKILL ends itself with exit 1
@@ -24,7 +24,7 @@ use std::process::ExitCode;
 use surgbench_comparisons::batch::{self, BatchError, BatchOptions};
 use surgbench_comparisons::comparison::Comparison;
 use surgbench_comparisons::datasets::project_root;
-use surgbench_comparisons::gate;
+use surgbench_comparisons::gate::{self, GateError};
 use surgbench_comparisons::haptic::run_haptic_loop;
 use surgbench_comparisons::resolve::ResolvedRun;
 use surgbench_comparisons::runner::{RunOptions, RunSummary};
@@ -508,7 +508,13 @@ fn cmd_gate(a: &GateArgs) -> Result<(), Failure> {
     // Before anything is measured: a baseline that cannot be read is an
     // error, never an empty baseline that `--update` would write back.
     let baseline = gate::load_baseline(&a.baseline)?;
-    let verdicts = gate::run_gate(&own_exe()?, &cfg, baseline, &a.baseline, a.update).map_err(Failure::Runtime)?;
+    // From here on a SIGINT/SIGTERM stops the running valgrind, removes its
+    // files and writes no baseline.
+    install_interrupt()?;
+    let verdicts = gate::run_gate(&own_exe()?, &cfg, baseline, &a.baseline, a.update).map_err(|e| match e {
+        GateError::Failed(s) => Failure::Runtime(s),
+        e @ GateError::Interrupted(sig) => Failure::Interrupted(e.to_string(), sig),
+    })?;
     say!(
         "{:<60} {:>16} {:>16} {:>8}",
         "workload",

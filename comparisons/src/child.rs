@@ -3,8 +3,8 @@
 //! On the parent's side, [`spawn_with_limit`] starts a child and polls it
 //! until it exits, its wall-clock limit passes, or a SIGINT/SIGTERM reaches
 //! the parent ([`crate::interrupt`]); a child still running then is killed
-//! and reaped. The batch runner waits for its `run-one` and `haptic` jobs
-//! this way.
+//! and reaped. The batch runner (`run-one` and `haptic` jobs) and the gate
+//! (valgrind) wait for their children this way.
 //!
 //! A parent killed by SIGKILL cannot do that. So the batch passes its pid
 //! to each child in [`PARENT_PID_VAR`], and the child, once it calls

@@ -5,10 +5,11 @@
 //! with the same exit code.
 //!
 //! Who reads the flag:
-//! - `surgbench run` polls it while it waits for a child
-//!   ([`crate::child::spawn_with_limit`]): the running child (`run-one`,
-//!   `haptic`) is killed and reaped, the temporary report folder removed,
-//!   nothing is written, and an earlier report is left as it was.
+//! - `surgbench run` and `surgbench gate` poll it while they wait for a
+//!   child ([`crate::child::spawn_with_limit`]): the running child
+//!   (`run-one`, `haptic`, valgrind) is killed and reaped, the temporary
+//!   report folder or callgrind files removed, nothing is written (no
+//!   report, no baseline), and earlier output is left as it was.
 //! - `surgbench run-one` polls it in its watchdog thread
 //!   ([`crate::child::start_watchdog`]), which ends it even while a model
 //!   hangs in a step; its temporary sibling of `--out` is either moved into
