@@ -3,8 +3,11 @@
 //! Exit codes: 0 success, 1 a run or write failed at runtime, 2 bad usage
 //! (unknown scenario/model/parameter, out-of-range value, malformed file,
 //! more steps than [`surgbench_comparisons::runner::MAX_STEPS`]); on exit 2
-//! nothing is written. `run` interrupted by SIGINT or SIGTERM stops its
-//! child, removes its temporary folder and exits 130 or 143.
+//! nothing is written. `run`, `run-one` and `gate` interrupted by SIGINT or
+//! SIGTERM stop their child (if any), remove their temporary files, write
+//! nothing and exit 130 or 143; a `run-one` or `haptic` child whose `run`
+//! was killed by SIGKILL ends itself with exit 1
+//! ([`surgbench_comparisons::child`]).
 
 use clap::{Args, Parser, Subcommand};
 
@@ -21,14 +24,14 @@ use std::process::ExitCode;
 use surgbench_comparisons::batch::{self, BatchError, BatchOptions};
 use surgbench_comparisons::comparison::Comparison;
 use surgbench_comparisons::datasets::project_root;
-use surgbench_comparisons::gate;
+use surgbench_comparisons::gate::{self, GateError};
 use surgbench_comparisons::haptic::run_haptic_loop;
-use surgbench_comparisons::outdir;
 use surgbench_comparisons::resolve::ResolvedRun;
 use surgbench_comparisons::runner::{RunOptions, RunSummary};
 use surgbench_comparisons::scenario::parse_overrides;
 use surgbench_comparisons::user_mesh::UserMesh;
 use surgbench_comparisons::{UsageError, registry};
+use surgbench_comparisons::{child, interrupt, outdir};
 use surgbench_reports::Status;
 
 #[derive(Parser)]
@@ -346,9 +349,14 @@ fn main() -> ExitCode {
         }
         Err(Failure::Interrupted(m, sig)) => {
             eprintln!("error: {m}");
-            ExitCode::from(surgbench_comparisons::interrupt::exit_code(sig))
+            ExitCode::from(interrupt::exit_code(sig))
         }
     }
+}
+
+/// Catch SIGINT/SIGTERM from now on ([`interrupt`]).
+fn install_interrupt() -> Result<(), Failure> {
+    interrupt::install().map_err(|e| Failure::Runtime(format!("cannot install signal handlers: {e}")))
 }
 
 /// This executable, for the child processes of a batch or the gate.
@@ -372,8 +380,7 @@ fn cmd_run(a: RunArgs) -> Result<(), Failure> {
     let c = Comparison::load(&find_comparison(&a.comparison)?)?;
     // From here on a SIGINT/SIGTERM stops the running child and removes the
     // temporary report folder instead of orphaning both.
-    surgbench_comparisons::interrupt::install()
-        .map_err(|e| Failure::Runtime(format!("cannot install signal handlers: {e}")))?;
+    install_interrupt()?;
     let out = a.out.unwrap_or_else(|| project_root().join("reports/out/latest"));
     let opts = BatchOptions {
         quick: a.quick,
@@ -409,25 +416,54 @@ fn cmd_run(a: RunArgs) -> Result<(), Failure> {
 }
 
 /// `surgbench run-one`: one run, its files written to a temporary sibling
-/// of `--out` and moved into place.
+/// of `--out` and moved into place. A SIGINT/SIGTERM, or the end of the
+/// batch that started it, ends it (the watchdog, [`child`]) without leaving
+/// the temporary sibling: `--out` is then as it was, or the complete new
+/// run if the signal came after the move.
 fn cmd_run_one(a: &RunOneArgs) -> Result<(), Failure> {
     outdir::check_replaceable(&a.out, a.force)?;
     let resolved = a.spec.resolve()?;
     if a.repeats == 0 {
         return Err(Failure::Usage("--repeats must be >= 1".into()));
     }
+    install_interrupt()?;
+    child::start_watchdog();
     let opts = RunOptions {
         repeats: a.repeats,
         ..Default::default()
     };
     let summary = resolved.run(&opts)?;
-    let out = &a.out;
+    write_run(&summary, &a.out)?;
+    if !a.quiet {
+        print_run(&summary, &a.out);
+    }
+    Ok(())
+}
+
+/// `Err(Interrupted)` once a SIGINT/SIGTERM has arrived.
+fn interrupted() -> Result<(), Failure> {
+    match interrupt::pending() {
+        Some(sig) => Err(Failure::Interrupted(
+            format!("interrupted by signal {sig}: nothing was written (any earlier folder at --out is unchanged)"),
+            sig,
+        )),
+        None => Ok(()),
+    }
+}
+
+/// Write a run's files into a temporary sibling of `out` and move it into
+/// place, under the [`child::staging`] guard: on an error or a signal the
+/// sibling is removed and `out` is left as it was.
+fn write_run(summary: &RunSummary, out: &Path) -> Result<(), Failure> {
+    let _staging = child::staging();
+    interrupted()?;
     let tmp =
         batch::temp_sibling(out).map_err(|e| Failure::Runtime(format!("cannot create {}: {e}", out.display())))?;
     let written = summary
         .write_files(&tmp)
         .and_then(|()| outdir::write_marker(&tmp))
         .map_err(|e| Failure::Runtime(format!("cannot write run files: {e}")))
+        .and_then(|()| interrupted())
         .and_then(|()| {
             batch::replace_dir(&tmp, out)
                 .map_err(|e| Failure::Runtime(format!("cannot move run into {}: {e}", out.display())))
@@ -436,11 +472,7 @@ fn cmd_run_one(a: &RunOneArgs) -> Result<(), Failure> {
         // Nothing half-written stays beside --out.
         let _ = std::fs::remove_dir_all(&tmp);
     }
-    written?;
-    if !a.quiet {
-        print_run(&summary, out);
-    }
-    Ok(())
+    written
 }
 
 /// What `run-one` tells a person about a run.
@@ -493,7 +525,13 @@ fn cmd_gate(a: &GateArgs) -> Result<(), Failure> {
     // Before anything is measured: a baseline that cannot be read is an
     // error, never an empty baseline that `--update` would write back.
     let baseline = gate::load_baseline(&a.baseline)?;
-    let verdicts = gate::run_gate(&own_exe()?, &cfg, baseline, &a.baseline, a.update).map_err(Failure::Runtime)?;
+    // From here on a SIGINT/SIGTERM stops the running valgrind, removes its
+    // files and writes no baseline.
+    install_interrupt()?;
+    let verdicts = gate::run_gate(&own_exe()?, &cfg, baseline, &a.baseline, a.update).map_err(|e| match e {
+        GateError::Failed(s) => Failure::Runtime(s),
+        e @ GateError::Interrupted(sig) => Failure::Interrupted(e.to_string(), sig),
+    })?;
     say!(
         "{:<60} {:>16} {:>16} {:>8}",
         "workload",
@@ -546,6 +584,8 @@ fn cmd_haptic(a: &HapticArgs) -> Result<(), Failure> {
         return Err(Failure::Usage("--record needs --replay".into()));
     }
     let resolved = a.spec.resolve()?;
+    // As a batch's child: end if the batch dies.
+    child::start_watchdog();
     // A replayed session drives the scene instead of its own timeline: it
     // must keep within the same limits (how far the wire may be fed) that
     // the scenario checks its own timeline against, before anything runs.
@@ -586,14 +626,22 @@ fn cmd_haptic(a: &HapticArgs) -> Result<(), Failure> {
     Ok(())
 }
 
-/// Write a one-row `haptic.csv` to `path` through a temporary file.
+/// Write a one-row `haptic.csv` to `path` through a temporary file, under
+/// the [`child::staging`] guard (the watchdog never ends the process with
+/// the temporary file on disk).
 fn write_haptic_row(path: &Path, row: surgbench_reports::HapticRow) -> Result<(), surgbench_reports::ReportError> {
+    let _staging = child::staging();
     let tmp = path.with_extension("csv.tmp");
-    surgbench_reports::write_haptic_csv(&tmp, &[row])?;
-    std::fs::rename(&tmp, path).map_err(|e| surgbench_reports::ReportError::Io {
-        path: path.to_path_buf(),
-        source: e,
-    })
+    let written = surgbench_reports::write_haptic_csv(&tmp, &[row]).and_then(|()| {
+        std::fs::rename(&tmp, path).map_err(|e| surgbench_reports::ReportError::Io {
+            path: path.to_path_buf(),
+            source: e,
+        })
+    });
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    written
 }
 
 /// `surgbench gate-workload`: build and step, nothing else (what valgrind counts).

@@ -8,13 +8,22 @@
 //! the batch kills the running child, waits for it, removes the temporary
 //! folder and returns [`BatchError::Interrupted`]: no process and no
 //! temporary folder outlive the batch, and the earlier report is untouched.
+//!
+//! A SIGKILL cannot be caught. Each child gets the batch's pid
+//! ([`crate::child::PARENT_PID_VAR`]) and ends itself within a fraction of
+//! a second once the batch is gone ([`crate::child::start_watchdog`]); the
+//! killed batch's own `.OUT.tmp-PID` folder stays until the next run into
+//! the same `--out`, which removes every such folder whose process is no
+//! longer alive ([`temp_sibling`]). The earlier report at `--out` is
+//! untouched in both cases.
 
+use crate::child::{Waited, spawn_with_limit};
 use crate::comparison::{Comparison, HapticJob, Job};
 use crate::registry;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Instant;
 use surgbench_reports::{HapticRow, ResultRow, RunInfo, RunSummary, Status};
 
 pub use surgbench_reports::staging::{replace_dir, temp_sibling};
@@ -302,56 +311,11 @@ fn child_command(
     for (k, v) in fidelity.pairs() {
         cmd.arg("--fidelity").arg(format!("{k}={v}"));
     }
-    cmd.env("RAYON_NUM_THREADS", opts.threads.to_string());
+    cmd.env("RAYON_NUM_THREADS", opts.threads.to_string())
+        .env("RUST_BACKTRACE", "0")
+        // The child ends itself if this process dies without killing it.
+        .env(crate::child::PARENT_PID_VAR, std::process::id().to_string());
     cmd
-}
-
-/// How the wait for a child ended.
-enum Waited {
-    /// It exited (or was killed by someone else) with this status.
-    Exited(std::process::ExitStatus),
-    /// It was killed at the wall-clock limit (or could not be waited on).
-    TimedOut,
-    /// It was killed because the batch got this signal.
-    Interrupted(i32),
-}
-
-/// Spawn `cmd` with stderr to `err_path` and wait up to `timeout` s, or
-/// until a SIGINT/SIGTERM reaches the batch ([`crate::interrupt`]); a child
-/// that is not done by then is killed and waited for, so none outlives the
-/// wait. Returns how it ended and the wall time (s).
-fn spawn_with_limit(mut cmd: Command, err_path: &Path, timeout: f64) -> Result<(Waited, f64), std::io::Error> {
-    cmd.env("RUST_BACKTRACE", "0")
-        .stdin(Stdio::null())
-        .stdout(Stdio::null());
-    match std::fs::File::create(err_path) {
-        Ok(f) => cmd.stderr(f),
-        Err(_) => cmd.stderr(Stdio::null()),
-    };
-    let start = Instant::now();
-    let mut child = cmd.spawn()?;
-    // Kill and reap: no child outlives the wait.
-    fn stop(child: &mut std::process::Child, why: Waited) -> Waited {
-        let _ = child.kill();
-        let _ = child.wait();
-        why
-    }
-    let status = loop {
-        match child.try_wait() {
-            Ok(Some(s)) => break Waited::Exited(s),
-            Ok(None) => {
-                if let Some(sig) = crate::interrupt::pending() {
-                    break stop(&mut child, Waited::Interrupted(sig));
-                }
-                if start.elapsed().as_secs_f64() > timeout {
-                    break stop(&mut child, Waited::TimedOut);
-                }
-                std::thread::sleep(Duration::from_millis(5));
-            }
-            Err(_) => break stop(&mut child, Waited::TimedOut),
-        }
-    };
-    Ok((status, start.elapsed().as_secs_f64()))
 }
 
 /// How a child that did not succeed ended, for the reason column.

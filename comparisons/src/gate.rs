@@ -5,7 +5,12 @@
 //! difference divided by `steps` is the cost of one step, free of build and
 //! start-up cost. The gate fails when a workload costs more than
 //! `(1 + margin)` times its committed baseline.
+//!
+//! With [`crate::interrupt::install`] called first, a SIGINT or SIGTERM to
+//! the gate kills and reaps the running valgrind, removes its files and
+//! writes no baseline ([`GateError::Interrupted`]).
 
+use crate::child::Waited;
 use crate::registry;
 use crate::resolve::ResolvedRun;
 use crate::scenario::UsageError;
@@ -137,12 +142,48 @@ pub fn step_workload(run: &ResolvedRun, steps: usize, key: &str) -> Result<(), U
     Ok(())
 }
 
+/// Why the gate could not judge.
+#[derive(Debug)]
+pub enum GateError {
+    /// Valgrind or the workload failed, or the baseline could not be written.
+    Failed(String),
+    /// SIGINT or SIGTERM (the number) arrived: the running valgrind was
+    /// killed and reaped, its files removed, and no baseline was written.
+    Interrupted(i32),
+}
+
+impl std::fmt::Display for GateError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            GateError::Failed(s) => f.write_str(s),
+            GateError::Interrupted(sig) => write!(
+                f,
+                "interrupted by signal {sig}: valgrind was stopped and no baseline was written (the baseline file is unchanged)"
+            ),
+        }
+    }
+}
+
+impl From<String> for GateError {
+    fn from(s: String) -> Self {
+        GateError::Failed(s)
+    }
+}
+
 /// Count instructions of `exe gate-workload ... --steps n` under callgrind.
-fn count(exe: &Path, w: &Workload, n: usize) -> Result<f64, String> {
-    let tmp = std::env::temp_dir().join(format!("surgbench-callgrind-{}-{n}.out", std::process::id()));
+/// Valgrind's output and stderr go to files in the temporary folder, which
+/// are removed however the count ends; a signal to the gate kills valgrind
+/// ([`crate::child::spawn_with_limit`]).
+fn count(exe: &Path, w: &Workload, n: usize) -> Result<f64, GateError> {
+    let stem = format!("surgbench-callgrind-{}-{n}", std::process::id());
+    let out_file = std::env::temp_dir().join(format!("{stem}.out"));
+    let err_file = std::env::temp_dir().join(format!("{stem}.stderr"));
     let mut cmd = Command::new("valgrind");
+    // No gdbserver: its FIFOs in the temporary folder would outlive a
+    // killed valgrind. It does not change the instructions counted.
     cmd.arg("--tool=callgrind")
-        .arg(format!("--callgrind-out-file={}", tmp.display()))
+        .arg("--vgdb=no")
+        .arg(format!("--callgrind-out-file={}", out_file.display()))
         .arg(exe)
         .arg("gate-workload")
         .arg("--model")
@@ -158,23 +199,42 @@ fn count(exe: &Path, w: &Workload, n: usize) -> Result<f64, String> {
         cmd.arg("--fidelity").arg(format!("{k}={v}"));
     }
     cmd.env("RAYON_NUM_THREADS", "1");
-    let out = cmd
-        .output()
-        .map_err(|e| format!("cannot run valgrind (is it installed?): {e}"))?;
-    if !out.status.success() {
+    let waited = crate::child::spawn_with_limit(cmd, &err_file, f64::INFINITY);
+    let counted = read_count(waited, &out_file, &err_file, w);
+    let _ = std::fs::remove_file(&out_file);
+    let _ = std::fs::remove_file(&err_file);
+    counted
+}
+
+/// The instruction count of a finished valgrind run: its summary line in
+/// `out_file`, or why there is none.
+fn read_count(
+    waited: std::io::Result<(Waited, f64)>,
+    out_file: &Path,
+    err_file: &Path,
+    w: &Workload,
+) -> Result<f64, GateError> {
+    let status = match waited {
+        Err(e) => return Err(format!("cannot run valgrind (is it installed?): {e}").into()),
+        Ok((Waited::Interrupted(sig), _)) => return Err(GateError::Interrupted(sig)),
+        Ok((Waited::TimedOut, _)) => return Err(format!("lost track of the valgrind run of {}", w.key()).into()),
+        Ok((Waited::Exited(s), _)) => s,
+    };
+    if !status.success() {
+        let err = std::fs::read_to_string(err_file).unwrap_or_default();
         return Err(format!(
             "valgrind run of {} failed: {}",
             w.key(),
-            String::from_utf8_lossy(&out.stderr).lines().last().unwrap_or("")
-        ));
+            err.lines().last().unwrap_or("")
+        )
+        .into());
     }
-    let text = std::fs::read_to_string(&tmp).map_err(|e| format!("no callgrind output: {e}"))?;
-    let _ = std::fs::remove_file(&tmp);
+    let text = std::fs::read_to_string(out_file).map_err(|e| format!("no callgrind output: {e}"))?;
     text.lines()
         .find_map(|l| l.strip_prefix("summary:").or_else(|| l.strip_prefix("totals:")))
         .and_then(|s| s.split_whitespace().next())
         .and_then(|s| s.parse::<f64>().ok())
-        .ok_or_else(|| "callgrind output has no summary line".into())
+        .ok_or_else(|| "callgrind output has no summary line".to_string().into())
 }
 
 /// One workload's verdict.
@@ -233,14 +293,17 @@ pub fn save_baseline(path: &Path, baseline: &Baseline) -> Result<(), String> {
 
 /// Count every workload and compare with `baseline` (from
 /// [`load_baseline`]); with `update`, record this CPU's counts in it
-/// (the other CPUs' are kept) and write it to `baseline_path`.
+/// (the other CPUs' are kept) and write it to `baseline_path`. With
+/// [`crate::interrupt::install`] called first, a SIGINT/SIGTERM stops the
+/// running valgrind and returns [`GateError::Interrupted`] before anything
+/// is written.
 pub fn run_gate(
     exe: &Path,
     cfg: &GateConfig,
     mut all: Baseline,
     baseline_path: &Path,
     update: bool,
-) -> Result<Vec<Verdict>, String> {
+) -> Result<Vec<Verdict>, GateError> {
     let cpu = cpu_model();
     let base = match all.by_cpu.get(&cpu) {
         Some(b) => b.clone(),
@@ -249,7 +312,8 @@ pub fn run_gate(
             let known: Vec<&str> = all.by_cpu.keys().map(String::as_str).collect();
             return Err(format!(
                 "no baseline for this CPU `{cpu}` (recorded: {known:?}): instruction counts are not comparable across CPU types; record one with `surgbench gate --update`"
-            ));
+            )
+            .into());
         }
     };
     let mut verdicts = Vec::new();
@@ -268,6 +332,9 @@ pub fn run_gate(
             baseline: old,
             pass,
         });
+    }
+    if let Some(sig) = crate::interrupt::pending() {
+        return Err(GateError::Interrupted(sig));
     }
     if update {
         all.by_cpu.insert(cpu, new);

@@ -1,9 +1,23 @@
-//! SIGINT and SIGTERM for a process that owns child processes and
-//! temporary folders (`surgbench run`): after [`install`], the first such
-//! signal only sets a flag, which the batch runner polls while it waits for
-//! a child; it then kills the child, removes its temporary report folder
-//! and exits with `128 + signal` (130 for SIGINT, 143 for SIGTERM). A
-//! second signal ends the process at once, with the same exit code.
+//! SIGINT and SIGTERM for a process that owns child processes or
+//! temporary output: after [`install`], the first such signal only sets a
+//! flag, and the process ends itself cleanly with `128 + signal` (130 for
+//! SIGINT, 143 for SIGTERM). A second signal ends the process at once,
+//! with the same exit code.
+//!
+//! Who reads the flag:
+//! - `surgbench run` and `surgbench gate` poll it while they wait for a
+//!   child ([`crate::child::spawn_with_limit`]): the running child
+//!   (`run-one`, `haptic`, valgrind) is killed and reaped, the temporary
+//!   report folder or callgrind files removed, nothing is written (no
+//!   report, no baseline), and earlier output is left as it was.
+//! - `surgbench run-one` polls it in its watchdog thread
+//!   ([`crate::child::start_watchdog`]), which ends it even while a model
+//!   hangs in a step; its temporary sibling of `--out` is either moved into
+//!   place whole or removed ([`crate::child::staging`]), never left.
+//!
+//! SIGKILL cannot be caught: a killed `run` leaves its `.OUT.tmp-PID`
+//! folder (the next run into the same `--out` removes it) and its child
+//! notices the lost parent and exits ([`crate::child`]).
 
 use std::sync::Arc;
 use std::sync::OnceLock;
@@ -38,6 +52,11 @@ pub fn install() -> std::io::Result<()> {
     }
     let _ = FLAGS.set(flags);
     Ok(())
+}
+
+/// Whether [`install`] was called in this process.
+pub fn installed() -> bool {
+    FLAGS.get().is_some()
 }
 
 /// The signal that arrived since [`install`], if one did.

@@ -3,10 +3,13 @@
 //! Scenarios ([`scenarios`]) with their references ([`references`], data in [`datasets`]), the model
 //! registry ([`registry`]), the single-run runner with timing and watchdogs
 //! ([`runner`]), comparisons as data ([`comparison`]) and the batch runner
-//! that isolates each run in a child process ([`batch`]). A user's own
-//! geometry reaches the scenarios that take one through [`user_mesh`].
+//! that isolates each run in a child process ([`batch`], with [`child`] and
+//! [`interrupt`] so that no child or temporary folder outlives it). A
+//! user's own geometry reaches the scenarios that take one through
+//! [`user_mesh`].
 
 pub mod batch;
+pub mod child;
 pub mod comparison;
 pub mod conformance;
 pub mod datasets;

@@ -10,24 +10,63 @@
 use std::io;
 use std::path::{Path, PathBuf};
 
-/// A fresh, empty temporary sibling of `out` (`.NAME.tmp-PID`) for building
-/// a replacement; `out`'s parent is created if needed.
-pub fn temp_sibling(out: &Path) -> io::Result<PathBuf> {
-    let parent = out
-        .parent()
+/// The folder holding `out` (`.` for a bare name).
+fn parent_of(out: &Path) -> &Path {
+    out.parent()
         .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
+        .unwrap_or(Path::new("."))
+}
+
+/// The prefix of every temporary sibling of `out`: `.NAME.tmp-`.
+fn temp_prefix(out: &Path) -> String {
+    format!(".{}.tmp-", out.file_name().and_then(|n| n.to_str()).unwrap_or("out"))
+}
+
+/// A fresh, empty temporary sibling of `out` (`.NAME.tmp-PID`) for building
+/// a replacement; `out`'s parent is created if needed. Stale siblings left
+/// by processes that died without cleaning up are removed first
+/// ([`remove_stale_siblings`]).
+pub fn temp_sibling(out: &Path) -> io::Result<PathBuf> {
+    let parent = parent_of(out);
     std::fs::create_dir_all(parent)?;
-    let tmp = parent.join(format!(
-        ".{}.tmp-{}",
-        out.file_name().and_then(|n| n.to_str()).unwrap_or("out"),
-        std::process::id()
-    ));
+    remove_stale_siblings(out);
+    let tmp = parent.join(format!("{}{}", temp_prefix(out), std::process::id()));
     if tmp.exists() {
         std::fs::remove_dir_all(&tmp)?;
     }
     std::fs::create_dir_all(&tmp)?;
     Ok(tmp)
+}
+
+/// Removes the temporary siblings of `out` (`.NAME.tmp-PID`, see
+/// [`temp_sibling`]) whose process is no longer alive: a process killed by
+/// SIGKILL cannot remove its own. A process counts as alive while
+/// `/proc/PID` exists; where `/proc` cannot tell (no `/proc/self`) nothing
+/// is removed, nor is a name whose tail is not a pid. The `.NAME.old-PID`
+/// folder a move leaves if killed halfway is never touched: it may be the
+/// only copy of the earlier output.
+pub fn remove_stale_siblings(out: &Path) {
+    let proc = Path::new("/proc");
+    if !proc.join("self").exists() {
+        return;
+    }
+    let prefix = temp_prefix(out);
+    let Ok(entries) = std::fs::read_dir(parent_of(out)) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name();
+        let Some(pid) = name
+            .to_str()
+            .and_then(|n| n.strip_prefix(&prefix))
+            .and_then(|p| p.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        if !proc.join(pid.to_string()).exists() {
+            let _ = std::fs::remove_dir_all(e.path());
+        }
+    }
 }
 
 /// Move `tmp` into place at `out`, keeping `out` intact until the new one
@@ -104,6 +143,37 @@ fn link_below(from: &Path, to: &Path, rel: &Path, skip: &dyn Fn(&Path) -> bool) 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A temporary sibling whose process is gone is removed by the next
+    /// [`temp_sibling`]; a live process's sibling, a name that is not a
+    /// pid, another folder's sibling and the `.old-` folder of a move stay.
+    #[test]
+    fn stale_temporary_siblings_are_removed() {
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("report");
+        let mut gone = std::process::Command::new("true").spawn().unwrap();
+        gone.wait().unwrap();
+        let mut alive = std::process::Command::new("sleep").arg("60").spawn().unwrap();
+        let names = [
+            format!(".report.tmp-{}", gone.id()),
+            format!(".report.tmp-{}", alive.id()),
+            ".report.tmp-x".to_string(),
+            format!(".other.tmp-{}", gone.id()),
+            format!(".report.old-{}", gone.id()),
+        ];
+        for n in &names {
+            std::fs::create_dir_all(tmp.path().join(n).join("runs")).unwrap();
+        }
+        let mine = temp_sibling(&out).unwrap();
+        let _ = alive.kill();
+        let _ = alive.wait();
+        let left = |n: &str| tmp.path().join(n).exists();
+        assert!(!left(&names[0]), "the dead process's sibling stays");
+        for n in &names[1..] {
+            assert!(left(n), "{n} was removed");
+        }
+        assert!(mine.is_dir(), "{}", mine.display());
+    }
 
     /// The linked tree has every file with its bytes, skips what `skip`
     /// says, and replacing a linked file in the copy leaves the original.
