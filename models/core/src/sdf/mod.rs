@@ -34,10 +34,12 @@ use crate::{Iso3, Mat3, Vec3};
 use std::fmt;
 use std::sync::Arc;
 
+mod cubic;
 mod mesh;
 mod swept;
 mod voxel;
 
+pub use cubic::CubicVoxelSdf;
 pub use mesh::MeshSdf;
 pub use swept::*;
 pub use voxel::*;

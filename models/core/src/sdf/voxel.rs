@@ -147,7 +147,8 @@ impl VoxelSdf {
         (v, Vec3::new(dx, dy, dz) / self.spacing)
     }
 
-    fn clamp_to_box(&self, p: &Vec3) -> Vec3 {
+    /// `p` (m) moved to the nearest point of the grid's box.
+    pub fn clamp_to_box(&self, p: &Vec3) -> Vec3 {
         let hi = self.max_corner();
         Vec3::new(
             p.x.clamp(self.origin.x, hi.x),
@@ -167,28 +168,7 @@ impl VoxelSdf {
         band: f64,
         keep: impl Fn(&Vec3) -> bool,
     ) -> VoxelError {
-        let mut rng = crate::rng::SplitMix64(seed);
-        let hi = self.max_corner();
-        let (mut max, mut sum2, mut n) = (0.0f64, 0.0, 0usize);
-        for _ in 0..count.saturating_mul(50) {
-            if n >= count {
-                break;
-            }
-            let p = rng.in_box(self.origin, hi);
-            let e = exact.distance(&p);
-            if e.abs() > band || !keep(&p) {
-                continue;
-            }
-            let d = (self.distance(&p) - e).abs();
-            max = max.max(d);
-            sum2 += d * d;
-            n += 1;
-        }
-        VoxelError {
-            max,
-            rms: if n > 0 { (sum2 / n as f64).sqrt() } else { f64::NAN },
-            count: n,
-        }
+        error_in_box(self, self.origin, self.max_corner(), exact, count, seed, band, keep)
     }
 
     /// Write the grid (format in the type's docs).
@@ -259,6 +239,43 @@ impl VoxelSdf {
             dims,
             values,
         })
+    }
+}
+
+/// Error of `approx` against `exact` at `count` seeded pseudo-random points
+/// of the box `[lo, hi]` where `|exact| <= band` (m) and `keep(p)` holds;
+/// tries at most `50 count` points.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn error_in_box(
+    approx: &dyn Sdf,
+    lo: Vec3,
+    hi: Vec3,
+    exact: &dyn Sdf,
+    count: usize,
+    seed: u64,
+    band: f64,
+    keep: impl Fn(&Vec3) -> bool,
+) -> VoxelError {
+    let mut rng = crate::rng::SplitMix64(seed);
+    let (mut max, mut sum2, mut n) = (0.0f64, 0.0, 0usize);
+    for _ in 0..count.saturating_mul(50) {
+        if n >= count {
+            break;
+        }
+        let p = rng.in_box(lo, hi);
+        let e = exact.distance(&p);
+        if e.abs() > band || !keep(&p) {
+            continue;
+        }
+        let d = (approx.distance(&p) - e).abs();
+        max = max.max(d);
+        sum2 += d * d;
+        n += 1;
+    }
+    VoxelError {
+        max,
+        rms: if n > 0 { (sum2 / n as f64).sqrt() } else { f64::NAN },
+        count: n,
     }
 }
 
