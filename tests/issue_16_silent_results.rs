@@ -17,8 +17,9 @@
 //!   datasets and the default `--out` to the build tree's path: now to the
 //!   current directory's project (see `datasets::project_root`);
 //! - at E = 1e20 a static run said "settled" after 10 steps with a 5.5 %
-//!   error: now settling also asks the speed to have fallen relative to the
-//!   run's own peak.
+//!   error: the rod was settled (run on, it stays), and the 5.5 % was the
+//!   elastica reference's own rounding (it summed x along the rod); it now
+//!   integrates the foreshortening, and the error is the model's.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -289,13 +290,12 @@ fn paths_resolve_from_the_current_directory() {
     );
 }
 
-/// DER on the cantilever at E = 1e20 Pa stops "settled" after 10 steps
-/// with a 5.5 % tip error against the elastica. The settling is not false:
-/// run on for 700 steps (settle_tol = 1e-300, never settles) the tip moves
-/// by under 0.2 % of its deflection and the 5.5 % stays, so the error is
-/// the reference's at a deflection of 1e-13 m (the Euler-Bernoulli error
-/// is 0.06 %), not an early stop. This pins that finding: if the early
-/// stop ever hides motion, the two runs part.
+/// DER on the cantilever at E = 1e20 Pa stops "settled" after 10 steps.
+/// The settling is not false: run on for 700 steps (settle_tol = 1e-300,
+/// never settles) the tip moves by under 0.2 % of its deflection. The
+/// 5.5 % tip error it used to report was the elastica reference's rounding
+/// at a deflection of 1e-13 m (x summed over 4000 RK4 steps); with the
+/// foreshortening integrated instead, the error is what the model makes.
 #[test]
 fn a_very_stiff_rod_settles_where_it_stays() {
     let tmp = tempfile::tempdir().unwrap();
@@ -329,9 +329,17 @@ fn a_very_stiff_rod_settles_where_it_stays() {
         "tip z {a:e} m settled vs {b:e} m run on"
     );
     let tip_error = |s: &RunSummary| s.errors["tip_error_rel"];
+    eprintln!(
+        "tip_error_rel settled {:e}, run on {:e}",
+        tip_error(&settled),
+        tip_error(&on)
+    );
     assert!(
-        (tip_error(&settled) - tip_error(&on)).abs() < 1e-3 && tip_error(&on) > 0.05,
-        "the 5.5 % is the same either way: {} vs {}",
+        // Measured: 6.25e-4 run on (DER's O(h^2) error at 40 segments,
+        // 1/40^2) and 2.29e-3 settled: stopping at step 10 leaves 0.17 %
+        // of the deflection, the bound the tip test above allows.
+        (tip_error(&settled) - tip_error(&on)).abs() < 2e-3 && tip_error(&on) < 1e-3,
+        "the error is small either way: {} vs {}",
         tip_error(&settled),
         tip_error(&on)
     );
