@@ -129,12 +129,21 @@ fn stick_slip_threshold_is_found_by_a_coulomb_slider() {
         "slider: threshold error {:.2e} (rel), sliding force error {:.2e} (rel), creep {:.2e} m",
         er["threshold_error_rel"], er["sliding_force_error_rel"], er["creep_before_threshold_m"]
     );
-    // The force ramps at k v between samples 0.6 s / 400 apart: that is the
-    // threshold's resolution, relative to mu_s N.
+    // A rigid block breaks loose at mu_s N (the scene's `rigid_threshold_n`),
+    // not at the elastic wire's mu_d N the scene scores against: the scorer
+    // finds the block's threshold to the resolution of the force ramp, k v
+    // between samples 0.6 s / 400 apart, relative to mu_s N...
     let res = k * 1e-3 * (0.6 / 400.0) / (mu_s * n_force);
+    let rigid = (er["threshold_n"] - er["rigid_threshold_n"]).abs() / er["rigid_threshold_n"];
     assert!(
-        er["threshold_error_rel"] <= res + 1e-9,
-        "threshold error {} > resolution {res}",
+        rigid <= res + 1e-9,
+        "threshold off mu_s N by {rigid} > resolution {res}"
+    );
+    // ... and reports it off the elastic wire's threshold by (mu_s - mu_d) / mu_d.
+    let off = (mu_s - mu_d) / mu_d;
+    assert!(
+        (er["threshold_error_rel"] - off).abs() <= mu_s / mu_d * res + 1e-9,
+        "threshold error {} vs {off}",
         er["threshold_error_rel"]
     );
     assert!(
@@ -192,4 +201,36 @@ fn flow_drift_needs_flow_and_scores_drift() {
         "the DER reference (datasets/reference/flow-drift) is committed"
     );
     assert_eq!(sum.end, "settled", "a motionless wire settles");
+}
+
+/// DER on `stick-slip-threshold` against the elastic wire's reference: the
+/// tip first moves within 5 % of `mu_d N` at every segment count, and the
+/// force-displacement curve `sqrt(2 EA mu_d n u0)` while slip spreads is
+/// met at first order in the segment length.
+#[test]
+fn der_meets_the_elastic_wire_stick_slip_reference() {
+    use surgbench_comparisons::registry;
+    use surgbench_comparisons::runner::{RunOptions, run_single};
+    use surgbench_core::Fidelity;
+    let s = scenario("stick-slip-threshold");
+    let p = params(s, &[]);
+    let der = registry::model("der").unwrap();
+    let mut curve = Vec::new();
+    for n in [10.0, 20.0, 40.0] {
+        let mut fid = Fidelity::default();
+        fid.set("segments", n).unwrap();
+        let r = s.instantiate_at(&p, &fid).unwrap();
+        let sum = run_single(s, &p, &r, der, &fid, &RunOptions::default()).unwrap();
+        assert_eq!(sum.status, "ok", "{}", sum.reason);
+        let th = sum.errors["threshold_error_rel"];
+        // Measured 6.8e-3, 5.5e-3, 1.7e-2 (2.2e-2 at 80): the 5 % the
+        // issue asks; a chain of K nodes is (mu_s - mu_d) / (mu_d K) above.
+        assert!(th < 0.05, "{n} segments: threshold error {th}");
+        curve.push(sum.errors["curve_error_rel"]);
+    }
+    // Measured 4.5e-2, 2.2e-2, 1.1e-2: order 1.02 then 1.00.
+    for w in curve.windows(2) {
+        let order = (w[0] / w[1]).log2();
+        assert!((0.8..1.3).contains(&order), "curve errors {curve:?}");
+    }
 }

@@ -50,6 +50,10 @@ fn every_scene_validates_and_asks_for_its_capabilities() {
                 MovingVessel,
             ],
         ),
+        (
+            "vessel-mesh-insertion",
+            &[Rod, VaryingProperties, Insertion, VesselContact, Friction],
+        ),
     ];
     let ids: Vec<_> = vessel::all().iter().map(|s| s.id()).collect();
     assert_eq!(ids, expect.iter().map(|e| e.0).collect::<Vec<_>>());

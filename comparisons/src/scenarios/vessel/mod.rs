@@ -37,7 +37,7 @@ pub use coronary_beating::{BeatingParams, CORONARY_BEATING};
 pub use coronary_tortuous::{CORONARY_TORTUOUS, CoronaryParams};
 pub use flow_drift::{FLOW_DRIFT, FlowParams};
 pub use mesh_insertion::{MESH_INSERTION, MeshInsertionParams, builtin_surface, builtin_tube};
-pub use stick_slip_threshold::{STICK_SLIP_THRESHOLD, StickParams};
+pub use stick_slip_threshold::{STICK_SLIP_THRESHOLD, StickParams, chain_threshold, elastic_bar_force};
 
 use crate::scenario::{FeedLimit, Metrics, ParamSpec, Range, Reference, Scenario, ScenarioRun, Scorer, UsageError};
 use std::f64::consts::PI;
