@@ -62,6 +62,7 @@ fn every_tissue_scenario_instantiates_validates_and_needs_what_it_expects() {
                 Capability::TissueContact,
             ],
         ),
+        ("tissue-patch-test", vec![Capability::Tissue]),
     ]
     .into();
     let all = tissue::all();
@@ -75,7 +76,8 @@ fn every_tissue_scenario_instantiates_validates_and_needs_what_it_expects() {
             "truth-cube",
             "wall-indentation",
             "wall-punch",
-            "sphere-indentation"
+            "sphere-indentation",
+            "tissue-patch-test"
         ]
     );
     for sc in all {

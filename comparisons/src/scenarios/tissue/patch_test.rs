@@ -19,7 +19,7 @@
 use super::*;
 use crate::params;
 use crate::scenario::{
-    Declared, Inputs, MeshKind, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
+    Declared, Inputs, MeshKind, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, UsageError,
 };
 use nalgebra::Matrix3;
 use surgbench_core::{Family, Observation, TetMesh, Vec3};
@@ -118,7 +118,7 @@ pub const PATCH_TEST: Declared<PatchParams> = Declared {
         reference: "exact: the affine field x = X + G (X - c) is the equilibrium of any homogeneous material (patch test, Irons & Razzaque 1972)",
         primary_error: "patch_error_rel",
         params: PatchParams::SPECS,
-        sweep: Sweep::MeshLevels { up_to: 2, dt: None },
+        sweep: LEVELS,
         quick: 2,
         mesh: Some(MeshKind::Tets),
     },
