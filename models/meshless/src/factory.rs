@@ -11,15 +11,18 @@ pub const MESHLESS_KEYS: &[FidelityKey] = &[
     FidelityKey::number(
         "support_factor",
         "poly6 support radius h_i over node i's local edge length (mean edge of the tets around it; default 1.5)",
-    ),
+    )
+    .above(0.0),
     FidelityKey::number(
         "mls_factor",
         "MLS surface-mapping radius over the local edge length of the surface node (default 2.0)",
-    ),
+    )
+    .above(0.0),
     FidelityKey::number(
         "stabilization",
         "hourglass-control stiffness over Young's modulus, gamma (default 0.1; 0 = off)",
-    ),
+    )
+    .at_least(0.0),
     FidelityKey::choice(
         "integrator",
         "time integrator",
@@ -35,21 +38,24 @@ pub const MESHLESS_KEYS: &[FidelityKey] = &[
     FidelityKey::number(
         "damping",
         "mass-proportional damping rate c (1/s); default 0, explicit on settling scenes 2 omega_1",
-    ),
+    )
+    .at_least(0.0),
     FidelityKey::switch(
         "pbd",
         "1 = add the seed's PBD corrections (edge stretch + virtual-tet energy), 0 = off (default)",
     ),
-    FidelityKey::number("pbd_stretch", "PBD stretch stiffness in [0, 1] (default 0.5)"),
-    FidelityKey::number("pbd_tet", "PBD virtual-tet energy stiffness in [0, 1] (default 0.5)"),
+    FidelityKey::number("pbd_stretch", "PBD stretch stiffness (default 0.5)").within(0.0, 1.0),
+    FidelityKey::number("pbd_tet", "PBD virtual-tet energy stiffness (default 0.5)").within(0.0, 1.0),
     FidelityKey::number(
         "support_floor",
         "radius floor over the longest mesh edge at the node, applied where support_factor x the local edge gives a nearly flat neighbourhood (rcond < 1e-3) (default 1.05: the support holds the node's mesh star, which spans 3D; 0 = off)",
-    ),
+    )
+    .at_least(0.0),
     FidelityKey::number(
         "contact_stiffness",
         "sphere contact penalty factor kappa: node stiffness kappa E/(1-nu^2) sqrt(node boundary area) (default 100; penetration ~ contact strain / kappa of the node spacing)",
-    ),
+    )
+    .above(0.0),
 ];
 
 /// Factory of the point-primitive (meshless) tissue, id `meshless`.

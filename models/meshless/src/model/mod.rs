@@ -145,63 +145,38 @@ pub struct MeshlessSettings {
 }
 
 impl MeshlessSettings {
-    /// The tissue's knobs from `settings` resolved for `scene`, rejecting
-    /// out-of-range values.
+    /// The tissue's knobs from `settings` resolved for `scene` (their
+    /// ranges were checked by `surgbench_core::resolve` against
+    /// [`crate::factory::MESHLESS_KEYS`]).
     pub fn from_settings(scene: &Scene, settings: &Settings) -> Result<Self, BuildError> {
         let f = settings.fidelity();
         let dt = f.dt.unwrap_or(1e-3);
         let iterations = f.iterations.unwrap_or(5);
-        let positive = |name: &str, v: f64| {
-            if v > 0.0 && v.is_finite() {
-                Ok(v)
-            } else {
-                Err(BuildError::bad(name, format!("must be > 0, got {v}")))
-            }
-        };
-        let unit = |name: &str, v: f64| {
-            if (0.0..=1.0).contains(&v) {
-                Ok(v)
-            } else {
-                Err(BuildError::bad(name, format!("must be in [0, 1], got {v}")))
-            }
-        };
+        // The keys' ranges are declared in `MESHLESS_KEYS` and checked by
+        // `surgbench_core::resolve` before a build; `dt` is a core knob.
+        if !(dt > 0.0 && dt.is_finite()) {
+            return Err(BuildError::bad("dt", format!("must be > 0, got {dt}")));
+        }
         let default_integrator = if scene.settle.is_some() {
             Integrator::QuasiStatic
         } else {
             Integrator::BackwardEuler
         };
         let integrator = settings.pick("integrator", INTEGRATORS, default_integrator)?;
-        let damping = match settings.number("damping") {
-            None => None,
-            Some(c) if c >= 0.0 && c.is_finite() => Some(c),
-            Some(c) => return Err(BuildError::bad("damping", format!("must be >= 0 1/s, got {c}"))),
-        };
-        let stabilization = settings.number_or("stabilization", 0.1);
-        if !(stabilization >= 0.0 && stabilization.is_finite()) {
-            return Err(BuildError::bad(
-                "stabilization",
-                format!("must be >= 0, got {stabilization}"),
-            ));
-        }
+        let damping = settings.number("damping");
         Ok(Self {
-            dt: positive("dt", dt)?,
+            dt,
             iterations,
-            support_factor: positive("support_factor", settings.number_or("support_factor", 1.5))?,
-            mls_factor: positive("mls_factor", settings.number_or("mls_factor", 2.0))?,
-            stabilization,
+            support_factor: settings.number_or("support_factor", 1.5),
+            mls_factor: settings.number_or("mls_factor", 2.0),
+            stabilization: settings.number_or("stabilization", 0.1),
             integrator,
             damping,
             pbd: settings.switch("pbd", false),
-            pbd_stretch: unit("pbd_stretch", settings.number_or("pbd_stretch", 0.5))?,
-            pbd_tet: unit("pbd_tet", settings.number_or("pbd_tet", 0.5))?,
-            support_floor: match settings.number_or("support_floor", DEFAULT_SUPPORT_FLOOR) {
-                v if v >= 0.0 && v.is_finite() => v,
-                v => return Err(BuildError::bad("support_floor", format!("must be >= 0, got {v}"))),
-            },
-            contact_stiffness: positive(
-                "contact_stiffness",
-                settings.number_or("contact_stiffness", DEFAULT_KAPPA),
-            )?,
+            pbd_stretch: settings.number_or("pbd_stretch", 0.5),
+            pbd_tet: settings.number_or("pbd_tet", 0.5),
+            support_floor: settings.number_or("support_floor", DEFAULT_SUPPORT_FLOOR),
+            contact_stiffness: settings.number_or("contact_stiffness", DEFAULT_KAPPA),
         })
     }
 }
