@@ -12,11 +12,12 @@ use surgbench_core::{
 
 /// Fidelity extras of `pbd-rod`.
 pub const ROD_KEYS: &[FidelityKey] = &[
-    FidelityKey::number("substeps", "XPBD substeps per step (integer >= 1; default 1)"),
+    FidelityKey::number("substeps", "XPBD substeps per step (default 1)").whole(1.0, 1e6),
     FidelityKey::number(
         "damping",
         "velocity damping rate c (1/s): v <- v / (1 + c h) each substep; default 0, or 2 omega_1 (critical for the first bending mode) in static scenes",
-    ),
+    )
+    .at_least(0.0),
     FidelityKey::choice(
         "solver",
         "constraint solver per iteration",
@@ -122,17 +123,19 @@ impl ModelFactory for PbdRodFactory {
 
 /// Fidelity extras of `pbd-tissue`.
 pub const TISSUE_KEYS: &[FidelityKey] = &[
-    FidelityKey::number("substeps", "XPBD substeps per step (integer >= 1; default 1)"),
+    FidelityKey::number("substeps", "XPBD substeps per step (default 1)").whole(1.0, 1e6),
     FidelityKey::number(
         "damping",
         "velocity damping rate c (1/s): v <- v / (1 + c h) each substep; default 0",
-    ),
-    FidelityKey::number("hash_box", "local activation box edge d (m); 0 = off (default)"),
-    FidelityKey::number("hash_span", "box expansion span (m); default d/3"),
+    )
+    .at_least(0.0),
+    FidelityKey::number("hash_box", "local activation box edge d (m); 0 = off (default)").at_least(0.0),
+    FidelityKey::number("hash_span", "box expansion span (m); default d/3").at_least(0.0),
     FidelityKey::number(
         "threads",
-        "worker threads of the constraint solve (integer >= 1; default min(2, available cores)); results are bit-identical for any count",
-    ),
+        "worker threads of the constraint solve (default min(2, available cores)); results are bit-identical for any count",
+    )
+    .whole(1.0, 256.0),
 ];
 
 /// Factory for the tetrahedral XPBD tissue (`pbd-tissue`).

@@ -49,15 +49,10 @@ pub use tissue::{
     ContactParticle, ParticleContact, PbdTissue, StaticInfo, StaticParams, TissueSettings, project_volume,
 };
 
-/// Range checks of the solver knobs both PBD models share: `dt` (s),
-/// `iterations`, `substeps` (an integer count carried as `f64` fidelity
-/// extra) and velocity `damping` (1/s).
-pub(crate) fn check_solver_knobs(
-    dt: f64,
-    iterations: usize,
-    substeps: f64,
-    damping: f64,
-) -> Result<(), surgbench_core::BuildError> {
+/// Range checks of the core knobs both PBD models read: `dt` (s) and
+/// `iterations`. Their own keys (`substeps`, `damping`, ...) declare their
+/// ranges in the factories' key tables, checked by `surgbench_core::resolve`.
+pub(crate) fn check_solver_knobs(dt: f64, iterations: usize) -> Result<(), surgbench_core::BuildError> {
     use surgbench_core::BuildError;
     if !(dt > 0.0 && dt.is_finite()) {
         return Err(BuildError::bad("dt", format!("must be > 0 s, got {dt}")));
@@ -67,15 +62,6 @@ pub(crate) fn check_solver_knobs(
             "iterations",
             format!("must be in 1..=1e6, got {iterations}"),
         ));
-    }
-    if !(substeps >= 1.0 && substeps.fract() == 0.0 && substeps <= 1e6) {
-        return Err(BuildError::bad(
-            "substeps",
-            format!("must be an integer in 1..=1e6, got {substeps}"),
-        ));
-    }
-    if !(damping >= 0.0 && damping.is_finite()) {
-        return Err(BuildError::bad("damping", format!("must be >= 0 1/s, got {damping}")));
     }
     Ok(())
 }

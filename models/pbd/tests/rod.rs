@@ -401,8 +401,10 @@ fn bad_input_is_rejected_not_panicked() {
     ));
     let empty = Scene::empty("nothing");
     assert!(PbdRodFactory.check(&empty).is_err());
+    // A valid request on a scene it cannot run: unsupported (a bad knob is
+    // reported first, by `resolve`, whatever the scene).
     assert!(matches!(
-        PbdRodFactory.build(&empty, &f),
+        PbdRodFactory.build(&empty, &fid(10, 10, 1, 1e-3, 0.0)),
         Err(BuildError::Unsupported(_))
     ));
     let mut m = PbdRodFactory.build(&scene, &fid(10, 10, 1, 1e-3, 0.0)).unwrap();

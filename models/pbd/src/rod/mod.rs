@@ -109,7 +109,8 @@ pub struct RodSettings {
 }
 
 impl RodSettings {
-    /// The rod's knobs from resolved `settings`, rejecting out-of-range values.
+    /// The rod's knobs from resolved `settings` (ranges declared in
+    /// [`crate::factory::ROD_KEYS`], checked by `surgbench_core::resolve`).
     pub fn from_settings(settings: &Settings) -> Result<Self, BuildError> {
         let f = settings.fidelity();
         let segments = f.segments.unwrap_or(50);
@@ -123,7 +124,7 @@ impl RodSettings {
                 format!("must be in 1..=100000, got {segments}"),
             ));
         }
-        crate::check_solver_knobs(dt, iterations, substeps, damping)?;
+        crate::check_solver_knobs(dt, iterations)?;
         let solver = settings.pick("solver", ROD_SOLVERS, RodSolver::GaussSeidel)?;
         Ok(Self {
             segments,
