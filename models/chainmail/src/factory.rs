@@ -65,8 +65,9 @@ const KEYS: &[FidelityKey] = &[
     ),
     FidelityKey::number(
         "beta",
-        "uniform shear limit beta >= 0 for every link, replacing the material mapping (alpha_min = alpha_max = 1)",
-    ),
+        "uniform shear limit beta for every link, replacing the material mapping (alpha_min = alpha_max = 1)",
+    )
+    .at_least(0.0),
     FidelityKey::choice(
         "beta_mapping",
         "material -> box mapping",
@@ -84,11 +85,13 @@ const KEYS: &[FidelityKey] = &[
     FidelityKey::number(
         "yield_strain",
         "recoverable strain eps_y of the core for beta_mapping=navigation (default 0.06, superelastic nitinol; ~0.004 for stainless steel)",
-    ),
+    )
+    .above(0.0),
     FidelityKey::number(
         "vessel_spacing",
         "moving vessels: spacing h (m) of the volumetric chain-mail lattice of wall and blood elements (default 0.5 mm)",
-    ),
+    )
+    .above(0.0),
     FidelityKey::number(
         "vessel_slack",
         "moving vessels: compression/stretch slack s of the vessel's links, alpha_min = 1 - s, alpha_max = 1 + s (default 0.1)",
@@ -96,11 +99,13 @@ const KEYS: &[FidelityKey] = &[
     FidelityKey::number(
         "vessel_beta",
         "moving vessels: shear limit beta of the vessel's links (default 0.1)",
-    ),
+    )
+    .at_least(0.0),
     FidelityKey::number(
         "haptic_k",
         "haptic gain k (N/m) of F_feedback = k (friction displacement + first-link length change); default E A / Delta",
-    ),
+    )
+    .above(0.0),
 ];
 
 /// The names of `frame`, as box frames.
@@ -189,12 +194,9 @@ impl ModelFactory for ChainmailFactory {
                 "rest curvature needs the link-frame boxes (frame=link): world/clamp-axis boxes keep every link near the clamp direction",
             )));
         }
+        // `beta` >= 0, like the other numeric keys' ranges, is declared in
+        // the key table and checked by `surgbench_core::resolve`.
         let beta_override = settings.number("beta");
-        if let Some(b) = beta_override
-            && (b.is_nan() || b < 0.0)
-        {
-            return Err(BuildError::bad("beta", format!("must be >= 0, got {b}")));
-        }
         let cfg = WireConfig {
             segments: f.segments.unwrap_or(DEFAULT_SEGMENTS),
             iterations: f.iterations.unwrap_or(DEFAULT_ITERATIONS),
