@@ -14,6 +14,7 @@
 //! interrupted stop what they run, leave no temporary file and write
 //! nothing, exiting 130 / 143.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -161,6 +162,31 @@ fn run_to_completion(comparison: &Path, out: &Path) {
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
 }
 
+/// Send `signal` to `child` and check what every interrupted command
+/// leaves: exit `code` with "interrupted by signal" on stderr, no process
+/// mentioning `root`, no temporary folder in `tmp`, and `out` as `before`.
+fn signal_and_check(
+    child: &mut Child,
+    signal: &str,
+    code: i32,
+    root: &str,
+    tmp: &Path,
+    out: &Path,
+    before: &BTreeMap<PathBuf, Vec<u8>>,
+) {
+    send(signal, child.id());
+    let status = wait_with_limit(child);
+    let mut err = String::new();
+    std::io::Read::read_to_string(child.stderr.as_mut().unwrap(), &mut err).unwrap();
+    assert_eq!(status.code(), Some(code), "SIG{signal}: {status:?}, stderr: {err}");
+    assert!(err.contains("interrupted by signal"), "stderr: {err}");
+    let left = processes_mentioning(root);
+    assert!(left.is_empty(), "processes left after SIG{signal}: {left:?}");
+    let temps = temporaries(tmp);
+    assert!(temps.is_empty(), "temporary folders left after SIG{signal}: {temps:?}");
+    assert!(snapshot(out) == *before, "--out changed after SIG{signal}");
+}
+
 /// An earlier report at `--out`, then `surgbench run` of a hanging model
 /// into the same `--out`, sent `signal` once its child runs: the parent
 /// exits `code`, no process is left, no temporary folder, and the earlier
@@ -189,18 +215,7 @@ fn interrupted_run_cleans_up(signal: &str, code: i32) {
         .unwrap();
     wait_for_child(&mut parent, &root, " run-one ");
 
-    send(signal, parent.id());
-    let status = wait_with_limit(&mut parent);
-    let mut err = String::new();
-    std::io::Read::read_to_string(parent.stderr.as_mut().unwrap(), &mut err).unwrap();
-    assert_eq!(status.code(), Some(code), "SIG{signal}: {status:?}, stderr: {err}");
-    assert!(err.contains("interrupted by signal"), "stderr: {err}");
-
-    let left = processes_mentioning(&root);
-    assert!(left.is_empty(), "processes left after SIG{signal}: {left:?}");
-    let temps = temporaries(tmp.path());
-    assert!(temps.is_empty(), "temporary folders left after SIG{signal}: {temps:?}");
-    assert!(snapshot(&out) == before, "the earlier report changed after SIG{signal}");
+    signal_and_check(&mut parent, signal, code, &root, tmp.path(), &out, &before);
 }
 
 #[test]
@@ -372,18 +387,7 @@ fn interrupted_run_one_cleans_up(signal: &str, number: u32, code: i32) {
         assert!(start.elapsed() < HARD_LIMIT, "run-one never caught SIG{signal}");
         std::thread::sleep(Duration::from_millis(10));
     }
-    send(signal, proc.id());
-    let status = wait_with_limit(&mut proc);
-    let mut err = String::new();
-    std::io::Read::read_to_string(proc.stderr.as_mut().unwrap(), &mut err).unwrap();
-    assert_eq!(status.code(), Some(code), "SIG{signal}: {status:?}, stderr: {err}");
-    assert!(err.contains("interrupted by signal"), "stderr: {err}");
-
-    let left = processes_mentioning(&root);
-    assert!(left.is_empty(), "processes left after SIG{signal}: {left:?}");
-    let temps = temporaries(tmp.path());
-    assert!(temps.is_empty(), "temporary folders left after SIG{signal}: {temps:?}");
-    assert!(snapshot(&out) == before, "--out changed after SIG{signal}");
+    signal_and_check(&mut proc, signal, code, &root, tmp.path(), &out, &before);
 }
 
 #[test]

@@ -77,41 +77,38 @@ impl CubicVoxelSdf {
         )
     }
 
-    /// Value, gradient (1) and Hessian (1/m) of the interpolant at `p`
-    /// inside the box.
-    fn interp(&self, p: &Vec3) -> (f64, Vec3, Mat3) {
+    /// Value, gradient (1) and, if `with_hessian`, Hessian (1/m; zero
+    /// otherwise) of the interpolant at `p` inside the box. Distance
+    /// queries, the hot path, skip the six Hessian sums.
+    fn interp(&self, p: &Vec3, with_hessian: bool) -> (f64, Vec3, Mat3) {
         let g = &self.grid;
         let h = g.spacing;
-        let q = (p - g.origin) / h;
-        let mut base = [0isize; 3];
-        let mut w = [[[0.0; 4]; 3]; 3];
-        for a in 0..3 {
-            let n = g.dims[a];
-            let x = q[a].clamp(0.0, (n - 1) as f64);
-            let i = (x.floor() as usize).min(n - 2);
-            base[a] = i as isize;
-            w[a] = weights(x - i as f64);
-        }
-        let idx = |a: usize, o: usize| (base[a] + o as isize - 1).clamp(0, g.dims[a] as isize - 1) as usize;
+        // The cell and local coordinates the trilinear reading uses.
+        let (base, t) = g.cell(p);
+        let w = t.map(weights);
+        // Stencil sample `o` (0..4 = offsets -1..2) along axis `a`, clamped
+        // into the grid.
+        let idx = |a: usize, o: usize| (base[a] + o).saturating_sub(1).min(g.dims[a] - 1);
         let (mut v, mut grad, mut hess) = (0.0, Vec3::zeros(), Mat3::zeros());
+        let (wx, wy, wz) = (w[0], w[1], w[2]);
         for c in 0..4 {
             let kz = idx(2, c);
             for b in 0..4 {
                 let jy = idx(1, b);
                 for a in 0..4 {
-                    let ix = idx(0, a);
-                    let s = g.values[ix + g.dims[0] * (jy + g.dims[1] * kz)];
-                    let (wx, wy, wz) = (w[0], w[1], w[2]);
+                    let s = g.values[idx(0, a) + g.dims[0] * (jy + g.dims[1] * kz)];
                     v += s * wx[0][a] * wy[0][b] * wz[0][c];
                     grad.x += s * wx[1][a] * wy[0][b] * wz[0][c];
                     grad.y += s * wx[0][a] * wy[1][b] * wz[0][c];
                     grad.z += s * wx[0][a] * wy[0][b] * wz[1][c];
-                    hess[(0, 0)] += s * wx[2][a] * wy[0][b] * wz[0][c];
-                    hess[(1, 1)] += s * wx[0][a] * wy[2][b] * wz[0][c];
-                    hess[(2, 2)] += s * wx[0][a] * wy[0][b] * wz[2][c];
-                    hess[(0, 1)] += s * wx[1][a] * wy[1][b] * wz[0][c];
-                    hess[(0, 2)] += s * wx[1][a] * wy[0][b] * wz[1][c];
-                    hess[(1, 2)] += s * wx[0][a] * wy[1][b] * wz[1][c];
+                    if with_hessian {
+                        hess[(0, 0)] += s * wx[2][a] * wy[0][b] * wz[0][c];
+                        hess[(1, 1)] += s * wx[0][a] * wy[2][b] * wz[0][c];
+                        hess[(2, 2)] += s * wx[0][a] * wy[0][b] * wz[2][c];
+                        hess[(0, 1)] += s * wx[1][a] * wy[1][b] * wz[0][c];
+                        hess[(0, 2)] += s * wx[1][a] * wy[0][b] * wz[1][c];
+                        hess[(1, 2)] += s * wx[0][a] * wy[1][b] * wz[1][c];
+                    }
                 }
             }
         }
@@ -133,7 +130,7 @@ impl Sdf for CubicVoxelSdf {
         let q = self.grid.clamp_to_box(p);
         let d = p - q;
         let n = d.norm();
-        let (v, g, _) = self.interp(&q);
+        let (v, g, _) = self.interp(&q, false);
         if n > 0.0 { (v + n, d / n) } else { (v, g) }
     }
     /// The interpolant's own Hessian inside the box (bounded, continuous
@@ -142,6 +139,6 @@ impl Sdf for CubicVoxelSdf {
         if self.grid.clamp_to_box(p) != *p {
             return Mat3::zeros();
         }
-        self.interp(p).2
+        self.interp(p, true).2
     }
 }

@@ -109,7 +109,7 @@ impl VoxelSdf {
 
     /// The cell holding `p` (clamped into the box) and `p`'s local
     /// coordinates in it, each in [0, 1].
-    fn cell(&self, p: &Vec3) -> ([usize; 3], [f64; 3]) {
+    pub(super) fn cell(&self, p: &Vec3) -> ([usize; 3], [f64; 3]) {
         let g = (p - self.origin) / self.spacing;
         let mut idx = [0usize; 3];
         let mut t = [0.0; 3];
