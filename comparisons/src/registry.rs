@@ -7,6 +7,7 @@
 use crate::scenario::{Scenario, UsageError};
 use crate::scenarios;
 use surgbench_core::ModelFactory;
+use surgbench_core::coupling::PairFactory;
 
 /// A registered model factory and the crate it lives in.
 pub struct Registered {
@@ -23,7 +24,31 @@ macro_rules! register {
     };
 }
 
-/// Every registered model, in report order.
+/// Every rod model x every tissue model, composed by the harness's
+/// coupling (an instrument in a deformable vessel): id `rod+tissue`. A pair
+/// whose halves lack the coupling hooks is registered all the same and
+/// refuses its scenes with the reason, so the report's pair matrix shows it.
+static PAIRS: [PairFactory; 9] = {
+    use surgbench_chainmail::ChainmailFactory as Chainmail;
+    use surgbench_der::DerFactory as Der;
+    use surgbench_fem::FemFactory as Fem;
+    use surgbench_meshless::MeshlessFactory as Meshless;
+    use surgbench_pbd::{PbdRodFactory as PbdRod, PbdTissueFactory as PbdTissue};
+    [
+        PairFactory::new("der+fem", &Der, &Fem),
+        PairFactory::new("der+pbd-tissue", &Der, &PbdTissue),
+        PairFactory::new("der+meshless", &Der, &Meshless),
+        PairFactory::new("chainmail+fem", &Chainmail, &Fem),
+        PairFactory::new("chainmail+pbd-tissue", &Chainmail, &PbdTissue),
+        PairFactory::new("chainmail+meshless", &Chainmail, &Meshless),
+        PairFactory::new("pbd-rod+fem", &PbdRod, &Fem),
+        PairFactory::new("pbd-rod+pbd-tissue", &PbdRod, &PbdTissue),
+        PairFactory::new("pbd-rod+meshless", &PbdRod, &Meshless),
+    ]
+};
+
+/// Every registered model, in report order: the single models, then the
+/// rod x tissue pairs.
 pub fn models() -> Vec<Registered> {
     let mut v = register![
         surgbench_der::DerFactory,
@@ -34,6 +59,10 @@ pub fn models() -> Vec<Registered> {
         surgbench_meshless::MeshlessFactory,
         surgbench_needle::NeedleFactory,
     ];
+    v.extend(PAIRS.iter().map(|p| Registered {
+        factory: p,
+        krate: "surgbench_core::coupling",
+    }));
     if std::env::var("SURGBENCH_FAULTY_MODELS").as_deref() == Ok("1") {
         use crate::faulty;
         for f in [&faulty::PANIC, &faulty::ABORT, &faulty::HANG, &faulty::NONFINITE] {

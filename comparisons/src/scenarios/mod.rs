@@ -3,6 +3,7 @@
 //! its parameters (a `params!` struct) and its scorer.
 
 pub mod needle;
+pub mod pair;
 pub mod rod;
 pub mod tissue;
 pub mod vessel;
@@ -15,5 +16,6 @@ pub fn all() -> Vec<&'static dyn Scenario> {
     v.extend(tissue::all());
     v.extend(vessel::all());
     v.extend(needle::all());
+    v.extend(pair::all());
     v
 }

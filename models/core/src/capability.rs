@@ -10,6 +10,9 @@ pub enum Family {
     Tissue,
     /// Rods coupled with tissue (needle insertion).
     Coupled,
+    /// A rod model and a tissue model composed by the harness (an
+    /// instrument in a deformable vessel: `der+fem`, ...).
+    Pair,
 }
 
 impl Family {
@@ -19,6 +22,7 @@ impl Family {
             Family::Rod => "rod",
             Family::Tissue => "tissue",
             Family::Coupled => "coupled",
+            Family::Pair => "pair",
         }
     }
 }
@@ -61,6 +65,12 @@ pub enum Capability {
     MovingVessel,
     /// Reports a hand force/torque a haptic device can render.
     HapticForce,
+    /// A tissue that takes forces on its contact surface from an instrument
+    /// and reports where that surface is (`TissueBody::contact_surface`).
+    SurfaceForces,
+    /// A rod whose lumen the harness replaces before every step (the
+    /// tissue's current inner wall, in a coupled run).
+    DeformableLumen,
 }
 
 impl Capability {
@@ -84,6 +94,8 @@ impl Capability {
             Capability::Flow => "blood-flow drag",
             Capability::MovingVessel => "a vessel moving over time (beating heart)",
             Capability::HapticForce => "hand force/torque for haptic rendering",
+            Capability::SurfaceForces => "forces from an instrument on the tissue's contact surface",
+            Capability::DeformableLumen => "a lumen replaced every step (a deforming vessel wall)",
         }
     }
 
@@ -107,6 +119,8 @@ impl Capability {
             Capability::Flow => "flow",
             Capability::MovingVessel => "moving-vessel",
             Capability::HapticForce => "haptic-force",
+            Capability::SurfaceForces => "surface-forces",
+            Capability::DeformableLumen => "deformable-lumen",
         }
     }
 }

@@ -21,6 +21,7 @@ pub mod band;
 pub mod beam;
 pub mod capability;
 pub mod contact;
+pub mod coupling;
 pub mod error;
 pub mod fidelity;
 pub mod flow;

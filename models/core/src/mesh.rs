@@ -240,6 +240,39 @@ fn cylindrical(
     TetMesh { nodes, tets }
 }
 
+/// The wall of a tube swept along a centreline: `frame(s)` gives the
+/// centreline frame at arclength `s` in `[0, length]` (m; local x the
+/// tangent, the section in local y-z), radii `inner..outer` (m), `n_theta
+/// >= 3` cells around, `n_r` through the wall and `n_s` along. Node
+/// `(i, j, k)` (radial, around, along; `i = 0` on the inner wall, `i = n_r`
+/// on the outer) has index `i + (n_r + 1) (j + n_theta k)`. Six tets per
+/// cell as [`tube`] (which is this along a straight axis).
+pub fn swept_wall(
+    frame: impl Fn(f64) -> crate::Iso3,
+    length: f64,
+    inner: f64,
+    outer: f64,
+    n_theta: usize,
+    n_r: usize,
+    n_s: usize,
+) -> TetMesh {
+    let (n_t, n_r, n_s) = (n_theta.max(3), n_r.max(1), n_s.max(1));
+    let nr_nodes = n_r + 1;
+    let mut nodes = Vec::with_capacity(nr_nodes * n_t * (n_s + 1));
+    for k in 0..=n_s {
+        let f = frame(length * k as f64 / n_s as f64);
+        for j in 0..n_t {
+            let th = std::f64::consts::TAU * j as f64 / n_t as f64;
+            for i in 0..nr_nodes {
+                let r = inner + (outer - inner) * i as f64 / n_r as f64;
+                nodes.push(f.translation.vector + f.rotation * Vec3::new(0.0, r * th.cos(), r * th.sin()));
+            }
+        }
+    }
+    let tets = lattice_tets(&nodes, [n_r, n_t, n_s], |i, j, k| i + nr_nodes * ((j % n_t) + n_t * k));
+    TetMesh { nodes, tets }
+}
+
 /// A copy of `mesh` with every node moved by `offset` (m).
 pub fn translated(mesh: &TetMesh, offset: Vec3) -> TetMesh {
     TetMesh {

@@ -6,12 +6,16 @@
 //! scene and fidelity against a factory once; the harness calls it, and so
 //! does [`ModelFactory::build`] for library callers.
 
+use crate::Vec3;
 use crate::capability::{Capability, Family};
 use crate::error::{BuildError, SimError, Unsupported};
 use crate::fidelity::Fidelity;
 use crate::observation::Observation;
 use crate::scene::{DeviceCommand, Scene};
+use crate::sdf::Sdf;
 use crate::settings::{FidelityKey, Settings};
+use std::any::Any;
+use std::sync::Arc;
 
 /// What one step cost.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -48,6 +52,52 @@ pub trait Model: Send {
     /// `diag_<name>`; they are not scored against a reference.
     fn diagnostics(&self) -> std::collections::BTreeMap<String, f64> {
         std::collections::BTreeMap::new()
+    }
+
+    /// Tissue models with [`Capability::SurfaceForces`]: current positions
+    /// (m) of the scene's contact-surface nodes, in
+    /// [`crate::TissueBody::surface_vertices`] order (each model maps them
+    /// from its own state). `None` for other models.
+    fn surface_positions(&self) -> Option<Vec<Vec3>> {
+        None
+    }
+
+    /// Tissue models with [`Capability::SurfaceForces`]: forces (N, world
+    /// frame) on the contact-surface nodes (same order as
+    /// [`Model::surface_positions`]), acting over every following step until
+    /// replaced; the model spreads them over its own degrees of freedom.
+    fn set_surface_forces(&mut self, forces: &[Vec3]) -> Result<(), SimError> {
+        let _ = forces;
+        Err(unsupported_hook("surface forces"))
+    }
+
+    /// Rod models with [`Capability::DeformableLumen`]: the lumen (signed
+    /// distance, negative inside) for every following step until replaced.
+    /// The contact state a model keeps between steps (lagged friction)
+    /// carries over: the wall moved, the contacts did not end.
+    fn set_lumen(&mut self, lumen: Arc<dyn Sdf>) -> Result<(), SimError> {
+        let _ = lumen;
+        Err(unsupported_hook("a replaced lumen"))
+    }
+
+    /// A copy of everything a step changes, for a coupling that retries a
+    /// step ([`Model::restore_state`]); `None` if the model cannot.
+    fn save_state(&self) -> Option<Box<dyn Any + Send>> {
+        None
+    }
+
+    /// Go back to a state [`Model::save_state`] returned.
+    fn restore_state(&mut self, state: &(dyn Any + Send)) -> Result<(), SimError> {
+        let _ = state;
+        Err(unsupported_hook("restoring a saved state"))
+    }
+}
+
+/// The error of a coupling hook a model does not implement.
+fn unsupported_hook(what: &str) -> SimError {
+    SimError::SolverFailed {
+        t: f64::NAN,
+        reason: format!("this model does not take {what}"),
     }
 }
 

@@ -263,6 +263,13 @@ pub struct TissueBody {
     /// any: frictionless unilateral contact with the body's boundary nodes.
     /// Needs [`Capability::TissueContact`].
     pub indenter: Option<SphereIndenter>,
+    /// The surface an instrument touches (a vessel's inner wall): triangles
+    /// over mesh nodes whose right-hand normal points out of the body (into
+    /// the lumen). Empty for a body no instrument touches. In a scene with
+    /// a rod, the rod moves in `Environment::vessel` (the lumen at rest,
+    /// bounded by this surface) as the body deforms; needs
+    /// [`Capability::SurfaceForces`].
+    pub contact_surface: Vec<[usize; 3]>,
 }
 
 /// A rigid sphere in frictionless, unilateral contact with a tissue body:
@@ -315,7 +322,17 @@ impl TissueBody {
             partial_fixed: Vec::new(),
             pressure_faces: Vec::new(),
             indenter: None,
+            contact_surface: Vec::new(),
         }
+    }
+
+    /// The nodes of [`TissueBody::contact_surface`], ascending: the order of
+    /// `Model::surface_positions` and `Model::set_surface_forces`.
+    pub fn surface_vertices(&self) -> Vec<usize> {
+        let mut v: Vec<usize> = self.contact_surface.iter().flatten().copied().collect();
+        v.sort_unstable();
+        v.dedup();
+        v
     }
 }
 
@@ -606,6 +623,9 @@ impl Scene {
                     if t.indenter.is_some() {
                         c.push(Capability::TissueContact);
                     }
+                    if !t.contact_surface.is_empty() {
+                        c.push(Capability::SurfaceForces);
+                    }
                 }
             }
         }
@@ -623,6 +643,9 @@ impl Scene {
         }
         if self.needle.is_some() {
             c.push(Capability::NeedleTissue);
+        }
+        if self.rods().next().is_some() && self.tissues().any(|t| !t.contact_surface.is_empty()) {
+            c.push(Capability::DeformableLumen);
         }
         c.sort();
         c.dedup();
@@ -650,6 +673,7 @@ impl Scene {
                         .chain(t.driven_nodes.iter().map(|d| d.0))
                         .chain(t.partial_fixed.iter().map(|d| d.0))
                         .chain(t.pressure_faces.iter().flat_map(|f| f.0))
+                        .chain(t.contact_surface.iter().flatten().copied())
                         .find(|&i| i >= n);
                     if let Some(i) = bad {
                         return Err(format!(
@@ -680,6 +704,14 @@ impl Scene {
         }
         if self.environment.vessel_motion.is_some() && self.environment.vessel.is_none() {
             return Err("a vessel motion needs a vessel".into());
+        }
+        if self.tissues().any(|t| !t.contact_surface.is_empty()) && self.rods().next().is_some() {
+            if self.environment.vessel.is_none() {
+                return Err("a rod in a tissue's contact surface needs the lumen at rest (environment.vessel)".into());
+            }
+            if self.rods().count() != 1 || self.tissues().count() != 1 || self.needle.is_some() {
+                return Err("an instrument in a deformable lumen is one rod and one tissue, without a needle".into());
+            }
         }
         if let Some(n) = &self.needle {
             n.validate()?;

@@ -22,6 +22,7 @@ const CAPABILITIES: &[Capability] = &[
     Capability::Flow,
     Capability::MovingVessel,
     Capability::HapticForce,
+    Capability::DeformableLumen,
 ];
 
 const KEYS: &[FidelityKey] = &[

@@ -1,7 +1,9 @@
 //! [`DerModel`]: a [`DerRod`] stepped and observed by the harness.
 
 use crate::rod::DerRod;
-use surgbench_core::{DeviceCommand, EnergyProbe, Model, Observation, SimError, StepStats};
+use std::any::Any;
+use std::sync::Arc;
+use surgbench_core::{DeviceCommand, EnergyProbe, Model, Observation, Sdf, SimError, StepStats};
 
 /// A [`DerRod`] built for one scene, stepped by the harness.
 #[derive(Debug, Clone)]
@@ -43,5 +45,25 @@ impl Model for DerModel {
 
     fn energy_probe(&mut self) -> Option<&mut dyn EnergyProbe> {
         Some(&mut self.rod)
+    }
+
+    fn set_lumen(&mut self, lumen: Arc<dyn Sdf>) -> Result<(), SimError> {
+        self.rod.replace_lumen(lumen);
+        Ok(())
+    }
+
+    /// The whole rod (its state is its positions, velocities, frames and
+    /// lagged contacts; the lumen is shared, not copied).
+    fn save_state(&self) -> Option<Box<dyn Any + Send>> {
+        Some(Box::new(self.rod.clone()))
+    }
+
+    fn restore_state(&mut self, state: &(dyn Any + Send)) -> Result<(), SimError> {
+        let rod = state.downcast_ref::<DerRod>().ok_or_else(|| SimError::SolverFailed {
+            t: self.rod.time(),
+            reason: "not a saved DER state".into(),
+        })?;
+        self.rod.clone_from(rod);
+        Ok(())
     }
 }

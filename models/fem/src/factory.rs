@@ -148,6 +148,7 @@ impl ModelFactory for FemFactory {
             Capability::PressureLoad,
             Capability::RollerConstraint,
             Capability::TissueContact,
+            Capability::SurfaceForces,
         ]
     }
     fn fidelity_keys(&self) -> &'static [FidelityKey] {

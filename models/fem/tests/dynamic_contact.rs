@@ -23,6 +23,7 @@ fn body() -> TissueBody {
             radius: 0.005,
             travel: Vec3::new(0.0, 0.0, -2e-4),
         }),
+        contact_surface: vec![],
         mesh: m,
         material: tissue(0.3),
     }

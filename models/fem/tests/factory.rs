@@ -28,6 +28,7 @@ fn block_body(n: usize, squash: f64) -> TissueBody {
         partial_fixed: vec![],
         pressure_faces: vec![],
         indenter: None,
+        contact_surface: vec![],
         mesh: m,
         material: tissue(0.3),
     }
@@ -204,6 +205,7 @@ fn lazy_jacobian_trades_updates_for_accuracy() {
         partial_fixed: vec![],
         pressure_faces: vec![],
         indenter: None,
+        contact_surface: vec![],
         mesh: m,
         material: tissue(0.3),
     };

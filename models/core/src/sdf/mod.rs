@@ -35,11 +35,13 @@ use std::fmt;
 use std::sync::Arc;
 
 mod cubic;
+mod displaced;
 mod mesh;
 mod swept;
 mod voxel;
 
 pub use cubic::CubicVoxelSdf;
+pub use displaced::{DisplacedLumen, SHEPARD_FLOOR, WallSamples};
 pub use mesh::MeshSdf;
 pub use swept::*;
 pub use voxel::*;

@@ -366,6 +366,13 @@ impl DerRod {
         self.friction.iter_mut().for_each(|f| *f = LaggedFriction::NONE);
     }
 
+    /// Replace the lumen for the following steps, keeping the contact
+    /// parameters and the lagged contact and friction state (the wall
+    /// moved; the contacts did not end): a coupled run's deforming wall.
+    pub fn replace_lumen(&mut self, vessel: Arc<dyn Sdf>) {
+        self.vessel = Some(vessel);
+    }
+
     /// Put the rod in a blood-flow field (see the module docs, "Flow drag").
     pub fn set_flow(&mut self, flow: Option<Arc<dyn FlowField>>) {
         self.flow = flow;

@@ -43,6 +43,7 @@ use crate::core::Solid;
 use crate::element::Jacobian;
 use crate::material::{Law, M3};
 use crate::statics::{Constraint, Newton, StaticParams, dof_conditions, equilibrate};
+use std::any::Any;
 use surgbench_core::sphere_contact::DEFAULT_KAPPA;
 use surgbench_core::{
     DeviceCommand, EnergyObs, EnergyProbe, Model, Observation, SimError, StepStats, TissueBody, TissueObs, Vec3,
@@ -162,6 +163,11 @@ pub struct FemModel {
     uc: Vec<f64>,
     driven: Vec<usize>,
     gravity_load: Vec<Vec3>,
+    /// Forces from outside the model on nodes (N, world frame; a coupled
+    /// instrument's contacts), held until replaced.
+    external: Vec<Vec3>,
+    /// The scene's contact-surface nodes (`TissueBody::surface_vertices`).
+    surface: Vec<usize>,
     /// Pressure faces (outward node order) and pressures at full command (Pa).
     pressure: Vec<([usize; 3], f64)>,
     /// Coefficients of the cached matrix `(c_k, c_m)`.
@@ -335,6 +341,8 @@ impl FemModel {
             uc,
             driven: body.driven_nodes.iter().map(|d| d.0).collect(),
             gravity_load,
+            external: vec![Vec3::zeros(); n],
+            surface: body.surface_vertices(),
             pressure: body.pressure_faces.clone(),
             cached: None,
             hand_force: Vec3::zeros(),
@@ -436,7 +444,12 @@ impl FemModel {
     /// increment, at most [`MAX_HALVINGS`] times; after a success keep the
     /// increment that worked. Leaves the positions reached in `self.x`.
     fn load_steps(&mut self, s: f64) -> Result<Newton, FemError> {
-        let load: Vec<f64> = self.gravity_load.iter().flat_map(|f| [f.x, f.y, f.z]).collect();
+        let load: Vec<f64> = self
+            .gravity_load
+            .iter()
+            .zip(&self.external)
+            .flat_map(|(f, e)| [f.x + e.x, f.y + e.y, f.z + e.z])
+            .collect();
         let sp = StaticParams {
             load_steps: 1,
             tol: self.p.tol,
@@ -556,7 +569,9 @@ impl FemModel {
         let mut r = vec![0.0; 3 * n];
         for i in 0..n {
             let acc = u.a0[i] + dxs[i] * u.c_a;
-            let ri = self.solid.forces[i] + self.gravity_load[i] - (acc + vel[i] * alpha) * m[i] - kv[i] * beta;
+            let ri = self.solid.forces[i] + self.gravity_load[i] + self.external[i]
+                - (acc + vel[i] * alpha) * m[i]
+                - kv[i] * beta;
             r[3 * i] = ri.x + pf[3 * i];
             r[3 * i + 1] = ri.y + pf[3 * i + 1];
             r[3 * i + 2] = ri.z + pf[3 * i + 2];
@@ -741,6 +756,69 @@ impl Model for FemModel {
     fn energy_probe(&mut self) -> Option<&mut dyn EnergyProbe> {
         Some(self)
     }
+
+    fn surface_positions(&self) -> Option<Vec<Vec3>> {
+        (!self.surface.is_empty()).then(|| self.surface.iter().map(|&i| self.x[i] + self.origin).collect())
+    }
+
+    /// Dead forces on the contact-surface nodes (a free node's residual
+    /// gains them; a constrained node's are carried by its support).
+    fn set_surface_forces(&mut self, forces: &[Vec3]) -> Result<(), SimError> {
+        if forces.len() != self.surface.len() || !forces.iter().all(|f| f.iter().all(|c| c.is_finite())) {
+            return Err(self.fail(format!(
+                "{} surface forces (finite) expected, got {}",
+                self.surface.len(),
+                forces.len()
+            )));
+        }
+        for (&i, f) in self.surface.iter().zip(forces) {
+            self.external[i] = *f;
+        }
+        Ok(())
+    }
+
+    /// Time, positions, velocities, accelerations and what the last step
+    /// reported; the cached factor and lazy Jacobians stay (they are
+    /// re-validated by the next step as usual).
+    fn save_state(&self) -> Option<Box<dyn Any + Send>> {
+        Some(Box::new(FemState {
+            t: self.t,
+            x: self.x.clone(),
+            v: self.v.clone(),
+            a: self.a.clone(),
+            s_last: self.s_last,
+            hand_force: self.hand_force,
+            inverted: self.inverted,
+            external: self.external.clone(),
+        }))
+    }
+
+    fn restore_state(&mut self, state: &(dyn Any + Send)) -> Result<(), SimError> {
+        let s = state
+            .downcast_ref::<FemState>()
+            .ok_or_else(|| self.fail("not a saved FEM state"))?;
+        self.t = s.t;
+        self.x.clone_from(&s.x);
+        self.v.clone_from(&s.v);
+        self.a.clone_from(&s.a);
+        self.s_last = s.s_last;
+        self.hand_force = s.hand_force;
+        self.inverted = s.inverted;
+        self.external.clone_from(&s.external);
+        Ok(())
+    }
+}
+
+/// What [`Model::save_state`] keeps of a [`FemModel`].
+struct FemState {
+    t: f64,
+    x: Vec<Vec3>,
+    v: Vec<Vec3>,
+    a: Vec<Vec3>,
+    s_last: f64,
+    hand_force: Vec3,
+    inverted: usize,
+    external: Vec<Vec3>,
 }
 
 impl EnergyProbe for FemModel {
