@@ -19,9 +19,11 @@ macro_rules! say {
         let _ = writeln!(std::io::stdout(), $($t)*);
     }};
 }
+mod cluster;
+
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use surgbench_comparisons::batch::{self, BatchError, BatchOptions};
+use surgbench_comparisons::batch::{self, BatchOptions};
 use surgbench_comparisons::comparison::Comparison;
 use surgbench_comparisons::datasets::project_root;
 use surgbench_comparisons::gate::{self, GateError};
@@ -31,8 +33,7 @@ use surgbench_comparisons::runner::{RunOptions, RunSummary};
 use surgbench_comparisons::scenario::parse_overrides;
 use surgbench_comparisons::user_mesh::UserMesh;
 use surgbench_comparisons::{UsageError, registry};
-use surgbench_comparisons::{child, interrupt, outdir};
-use surgbench_reports::Status;
+use surgbench_comparisons::{child, interrupt, outdir, plan, shard_run};
 
 #[derive(Parser)]
 #[command(
@@ -52,8 +53,16 @@ struct Cli {
 enum Cmd {
     /// List scenarios (with parameters and defaults), models (with capabilities) and comparisons.
     List,
-    /// Run a comparison (default: comparisons/standard.toml) and write a report.
+    /// Run a comparison (default: comparisons/standard.toml) and write a
+    /// report; with --shard K/N (or an array job's index variable) run one
+    /// shard of it into a folder the shards share.
     Run(RunArgs),
+    /// Plan a sharded run: every point with its stable id and shard,
+    /// written to DIR/plan.json; prints how many points each shard gets.
+    Plan(cluster::PlanArgs),
+    /// Gather the points of sharded run folders into one report; names the
+    /// points missing or failed (exit 1 if any are missing, unless --partial).
+    Merge(cluster::MergeArgs),
     /// Run one scenario with one model at one fidelity; writes summary.json,
     /// observables.csv and final_state.csv into --out.
     RunOne(RunOneArgs),
@@ -109,6 +118,18 @@ struct RunArgs {
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
+    /// Run shard K of N (K from 0) into the shared folder --out. Without it,
+    /// an array job's index is read from SLURM_ARRAY_TASK_ID,
+    /// JOB_COMPLETION_INDEX, AWS_BATCH_JOB_ARRAY_INDEX or BATCH_TASK_INDEX.
+    #[arg(long, value_name = "K/N")]
+    shard: Option<String>,
+    /// Shard count, where the index comes without one (JOB_COMPLETION_INDEX)
+    /// and --out holds no plan yet.
+    #[arg(long, value_name = "N")]
+    shards: Option<usize>,
+    /// Run a sharded run's finished points again instead of skipping them.
+    #[arg(long)]
+    no_resume: bool,
 }
 
 /// The scenario x model x parameters x fidelity a single-run command takes.
@@ -331,6 +352,8 @@ fn main() -> ExitCode {
             Ok(())
         }
         Cmd::Run(a) => cmd_run(a),
+        Cmd::Plan(a) => cluster::cmd_plan(a),
+        Cmd::Merge(a) => cluster::cmd_merge(a),
         Cmd::RunOne(a) => cmd_run_one(&a),
         Cmd::Report { dir } => cmd_report(&dir),
         Cmd::Gate(a) => cmd_gate(&a),
@@ -377,6 +400,19 @@ fn cmd_run(a: RunArgs) -> Result<(), Failure> {
     {
         return Err(Failure::Usage(format!("--timeout must be > 0 s, got {t}")));
     }
+    let shard = match &a.shard {
+        Some(text) => Some(plan::parse_shard(text)?),
+        None => plan::shard_from_env(&|k| std::env::var(k).ok())?,
+    };
+    match shard {
+        Some(s) => return cluster::cmd_run_sharded(a, s),
+        None if a.shards.is_some() => {
+            return Err(Failure::Usage(
+                "--shards goes with --shard K/N or an array job's index variable".into(),
+            ));
+        }
+        None => {}
+    }
     let c = Comparison::load(&find_comparison(&a.comparison)?)?;
     // From here on a SIGINT/SIGTERM stops the running child and removes the
     // temporary report folder instead of orphaning both.
@@ -394,22 +430,9 @@ fn cmd_run(a: RunArgs) -> Result<(), Failure> {
         exe: own_exe()?,
         command: std::env::args().collect::<Vec<_>>().join(" "),
     };
-    let rows = batch::run_comparison(&c, &opts).map_err(|e| match e {
-        BatchError::Usage(u) => Failure::Usage(u.0),
-        BatchError::Io(s) => Failure::Runtime(s),
-        e @ BatchError::Interrupted(sig) => Failure::Interrupted(e.to_string(), sig),
-    })?;
+    let rows = batch::run_comparison(&c, &opts).map_err(cluster::batch_failure)?;
     if !a.quiet {
-        let count = |s: Status| rows.iter().filter(|r| r.status == s).count();
-        say!(
-            "{} runs: {} ok, {} unstable, {} unsupported, {} failed, {} timeout",
-            rows.len(),
-            count(Status::Ok),
-            count(Status::Unstable),
-            count(Status::Unsupported),
-            count(Status::Failed),
-            count(Status::Timeout)
-        );
+        say!("{} runs: {}", rows.len(), shard_run::status_line(&rows));
         say!("report: {}", out.join("index.html").display());
     }
     Ok(())
