@@ -184,6 +184,12 @@ impl Plan {
         })
     }
 
+    /// The points shard `k` runs, each with its index in [`Plan::points`]
+    /// (the index of its job), in plan order.
+    pub fn shard_points(&self, k: usize) -> impl Iterator<Item = (usize, &PlanPoint)> {
+        self.points.iter().enumerate().filter(move |(_, p)| p.shard == k)
+    }
+
     /// How many points each shard runs, by shard index.
     pub fn counts(&self) -> Vec<usize> {
         let mut n = vec![0; self.shards];

@@ -202,7 +202,14 @@ pub fn run_shard(
     }
     let host = host_name();
     let machine = batch::machine_description();
-    let mine: Vec<(&PlanPoint, &Job)> = plan.points.iter().zip(jobs).filter(|(p, _)| p.shard == index).collect();
+    if jobs.len() != plan.points.len() {
+        return Err(BatchError::Io(format!(
+            "the plan has {} points but {} jobs were given",
+            plan.points.len(),
+            jobs.len()
+        )));
+    }
+    let mine: Vec<(&PlanPoint, &Job)> = plan.shard_points(index).map(|(i, p)| (p, &jobs[i])).collect();
     let mut out = ShardOutcome {
         points: mine.len(),
         ..Default::default()
