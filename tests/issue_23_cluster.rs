@@ -56,9 +56,15 @@ fn comparison(dir: &Path, name: &str, segments: &str, extra: &str) -> PathBuf {
     p
 }
 
-/// The point files of a sharded run's folder, by name, with their bytes.
+/// The point files of a sharded run's folder, by name, with their bytes
+/// (none before the shard made its `points/` folder).
 fn points(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
-    common::snapshot(&dir.join("points"))
+    let p = dir.join("points");
+    if p.is_dir() {
+        common::snapshot(&p)
+    } else {
+        Default::default()
+    }
 }
 
 /// A shard killed with SIGKILL while its last point (a hanging model) runs
