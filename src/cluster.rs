@@ -2,10 +2,10 @@
 //! ([`surgbench_comparisons::plan`], [`surgbench_comparisons::shard_run`],
 //! [`surgbench_comparisons::merge`]).
 
-use crate::{Failure, RunArgs, find_comparison, install_interrupt, own_exe};
+use crate::{Failure, RunArgs, SweepArgs, find_comparison, install_interrupt};
 use clap::Args;
 use std::path::PathBuf;
-use surgbench_comparisons::batch::{self, BatchError, BatchOptions};
+use surgbench_comparisons::batch::{self, BatchError};
 use surgbench_comparisons::comparison::{Comparison, Job};
 use surgbench_comparisons::merge::{self, MergeOptions};
 use surgbench_comparisons::plan::{self, Plan, PlanSettings, ShardIndex};
@@ -14,15 +14,8 @@ use surgbench_comparisons::shard_run;
 /// `surgbench plan`.
 #[derive(Args)]
 pub(crate) struct PlanArgs {
-    /// Comparison name or path to a .toml file (as for `run`).
-    #[arg(default_value = "standard")]
-    comparison: String,
-    /// Only these models (comma-separated ids).
-    #[arg(long, value_delimiter = ',')]
-    models: Option<Vec<String>>,
-    /// The quick sweeps, one repeat.
-    #[arg(long)]
-    quick: bool,
+    #[command(flatten)]
+    sweep: SweepArgs,
     /// How many shards (array tasks) to split the points over.
     #[arg(long)]
     shards: usize,
@@ -30,12 +23,6 @@ pub(crate) struct PlanArgs {
     /// an earlier sharded run's with the same plan.
     #[arg(long)]
     out: PathBuf,
-    /// Repeats per run (overrides the comparison).
-    #[arg(long)]
-    repeats: Option<usize>,
-    /// Wall-clock limit per run in seconds (overrides the comparison).
-    #[arg(long)]
-    timeout: Option<f64>,
     /// Also list every point with its id and shard.
     #[arg(long)]
     verbose: bool,
@@ -62,24 +49,11 @@ pub(crate) struct MergeArgs {
     allow_mixed: bool,
 }
 
-/// The comparison, its validated jobs and their plan.
-fn make_plan(
-    comparison: &str,
-    quick: bool,
-    models: Option<Vec<String>>,
-    repeats: Option<usize>,
-    timeout: Option<f64>,
-    shards: usize,
-) -> Result<(Comparison, Plan, Vec<Job>), Failure> {
-    if repeats == Some(0) {
-        return Err(Failure::Usage("--repeats must be >= 1".into()));
-    }
-    if let Some(t) = timeout
-        && !(t > 0.0)
-    {
-        return Err(Failure::Usage(format!("--timeout must be > 0 s, got {t}")));
-    }
-    let path = find_comparison(comparison)?;
+/// The comparison `sweep` names, its validated jobs and their plan over `shards`.
+fn make_plan(sweep: &SweepArgs, shards: usize) -> Result<(Comparison, Plan, Vec<Job>), Failure> {
+    sweep.check()?;
+    let (quick, models, repeats, timeout) = (sweep.quick, sweep.models.clone(), sweep.repeats, sweep.timeout);
+    let path = find_comparison(&sweep.comparison)?;
     let c = Comparison::load(&path)?;
     let jobs = batch::checked_jobs(&c, quick, models.as_deref())?;
     let settings = PlanSettings {
@@ -87,8 +61,8 @@ fn make_plan(
         commit: batch::git_commit(),
         quick,
         models,
-        repeats: if quick { 1 } else { repeats.or(c.repeats).unwrap_or(1) },
-        timeout_s: timeout.or(c.timeout_s).unwrap_or(300.0),
+        repeats: batch::repeats_of(&c, quick, repeats),
+        timeout_s: batch::timeout_of(&c, timeout),
         shards,
     };
     let p = Plan::new(&c, &jobs, settings)?;
@@ -98,7 +72,7 @@ fn make_plan(
 /// `surgbench plan`: write the plan into the sharded run's folder and say
 /// how many points each shard gets.
 pub(crate) fn cmd_plan(a: PlanArgs) -> Result<(), Failure> {
-    let (c, p, _) = make_plan(&a.comparison, a.quick, a.models, a.repeats, a.timeout, a.shards)?;
+    let (c, p, _) = make_plan(&a.sweep, a.shards)?;
     shard_run::ensure_plan(&a.out, &p)?;
     say!(
         "{}: {} points over {} shards, commit {}, plan in {}",
@@ -140,23 +114,12 @@ pub(crate) fn cmd_run_sharded(a: RunArgs, shard: ShardIndex) -> Result<(), Failu
     // shard) says how many shards there are.
     let existing = Plan::load(&out)?;
     let (count, note) = plan::resolve_count(&shard, a.shards, existing.as_ref())?;
-    let (c, p, jobs) = make_plan(&a.comparison, a.quick, a.models.clone(), a.repeats, a.timeout, count)?;
+    let (c, p, jobs) = make_plan(&a.sweep, count)?;
     if let Some(n) = note {
         eprintln!("note: {n}");
     }
     install_interrupt()?;
-    let opts = BatchOptions {
-        quick: a.quick,
-        models: a.models,
-        out: out.clone(),
-        force: false,
-        threads: a.threads,
-        repeats: a.repeats,
-        timeout_s: a.timeout,
-        quiet: a.quiet,
-        exe: own_exe()?,
-        command: std::env::args().collect::<Vec<_>>().join(" "),
-    };
+    let opts = a.batch_options(out.clone())?;
     let done = shard_run::run_shard(&c, &p, &jobs, shard.index, &opts, !a.no_resume).map_err(batch_failure)?;
     if !a.quiet {
         say!(

@@ -1,4 +1,6 @@
-//! `surgbench`: run the standard comparison, one run, or re-render a report.
+//! `surgbench`: run the standard comparison, one run, or re-render a report;
+//! plan, run and merge a comparison sharded over a cluster's array jobs
+//! ([`cluster`]).
 //!
 //! Exit codes: 0 success, 1 a run or write failed at runtime, 2 bad usage
 //! (unknown scenario/model/parameter, out-of-range value, malformed file,
@@ -7,7 +9,9 @@
 //! SIGTERM stop their child (if any), remove their temporary files, write
 //! nothing and exit 130 or 143; a `run-one` or `haptic` child whose `run`
 //! was killed by SIGKILL ends itself with exit 1
-//! ([`surgbench_comparisons::child`]).
+//! ([`surgbench_comparisons::child`]). `merge` exits 1 when points are
+//! missing (without `--partial`) and 2 for folders of another comparison
+//! or commit (without `--allow-mixed`), writing nothing in both cases.
 
 use clap::{Args, Parser, Subcommand};
 
@@ -83,9 +87,9 @@ enum Cmd {
     GateWorkload(GateWorkloadArgs),
 }
 
-/// `surgbench run`.
+/// What a comparison run covers: shared by `run` and `plan`.
 #[derive(Args)]
-struct RunArgs {
+struct SweepArgs {
     /// Comparison name (comparisons/NAME.toml in the project root: the nearest
     /// folder up from here holding comparisons/, or $SURGBENCH_ROOT) or path to a .toml file.
     #[arg(default_value = "standard")]
@@ -96,6 +100,34 @@ struct RunArgs {
     /// Smaller sweeps, one repeat: a report in a minute or two.
     #[arg(long)]
     quick: bool,
+    /// Repeats per run (overrides the comparison; timings pooled).
+    #[arg(long)]
+    repeats: Option<usize>,
+    /// Wall-clock limit per run in seconds (overrides the comparison).
+    #[arg(long)]
+    timeout: Option<f64>,
+}
+
+impl SweepArgs {
+    /// `--repeats` and `--timeout` in range.
+    fn check(&self) -> Result<(), Failure> {
+        if self.repeats == Some(0) {
+            return Err(Failure::Usage("--repeats must be >= 1".into()));
+        }
+        if let Some(t) = self.timeout
+            && !(t > 0.0)
+        {
+            return Err(Failure::Usage(format!("--timeout must be > 0 s, got {t}")));
+        }
+        Ok(())
+    }
+}
+
+/// `surgbench run`.
+#[derive(Args)]
+struct RunArgs {
+    #[command(flatten)]
+    sweep: SweepArgs,
     /// Report folder (default: reports/out/latest in the project root: the
     /// nearest folder up from here holding comparisons/, or $SURGBENCH_ROOT),
     /// replaced as a whole: an
@@ -109,12 +141,6 @@ struct RunArgs {
     /// Threads per run (RAYON_NUM_THREADS); runs themselves go one at a time.
     #[arg(long, default_value_t = 1)]
     threads: usize,
-    /// Repeats per run (overrides the comparison; timings pooled).
-    #[arg(long)]
-    repeats: Option<usize>,
-    /// Wall-clock limit per run in seconds (overrides the comparison).
-    #[arg(long)]
-    timeout: Option<f64>,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
@@ -130,6 +156,24 @@ struct RunArgs {
     /// Run a sharded run's finished points again instead of skipping them.
     #[arg(long)]
     no_resume: bool,
+}
+
+impl RunArgs {
+    /// The batch runner's options for this command, writing into `out`.
+    fn batch_options(&self, out: PathBuf) -> Result<BatchOptions, Failure> {
+        Ok(BatchOptions {
+            quick: self.sweep.quick,
+            models: self.sweep.models.clone(),
+            out,
+            force: self.force,
+            threads: self.threads,
+            repeats: self.sweep.repeats,
+            timeout_s: self.sweep.timeout,
+            quiet: self.quiet,
+            exe: own_exe()?,
+            command: std::env::args().collect::<Vec<_>>().join(" "),
+        })
+    }
 }
 
 /// The scenario x model x parameters x fidelity a single-run command takes.
@@ -392,14 +436,7 @@ fn cmd_run(a: RunArgs) -> Result<(), Failure> {
     if a.threads == 0 {
         return Err(Failure::Usage("--threads must be >= 1".into()));
     }
-    if a.repeats == Some(0) {
-        return Err(Failure::Usage("--repeats must be >= 1".into()));
-    }
-    if let Some(t) = a.timeout
-        && !(t > 0.0)
-    {
-        return Err(Failure::Usage(format!("--timeout must be > 0 s, got {t}")));
-    }
+    a.sweep.check()?;
     let shard = match &a.shard {
         Some(text) => Some(plan::parse_shard(text)?),
         None => plan::shard_from_env(&|k| std::env::var(k).ok())?,
@@ -413,23 +450,15 @@ fn cmd_run(a: RunArgs) -> Result<(), Failure> {
         }
         None => {}
     }
-    let c = Comparison::load(&find_comparison(&a.comparison)?)?;
+    let c = Comparison::load(&find_comparison(&a.sweep.comparison)?)?;
     // From here on a SIGINT/SIGTERM stops the running child and removes the
     // temporary report folder instead of orphaning both.
     install_interrupt()?;
-    let out = a.out.unwrap_or_else(|| project_root().join("reports/out/latest"));
-    let opts = BatchOptions {
-        quick: a.quick,
-        models: a.models,
-        out: out.clone(),
-        force: a.force,
-        threads: a.threads,
-        repeats: a.repeats,
-        timeout_s: a.timeout,
-        quiet: a.quiet,
-        exe: own_exe()?,
-        command: std::env::args().collect::<Vec<_>>().join(" "),
-    };
+    let out = a
+        .out
+        .clone()
+        .unwrap_or_else(|| project_root().join("reports/out/latest"));
+    let opts = a.batch_options(out.clone())?;
     let rows = batch::run_comparison(&c, &opts).map_err(cluster::batch_failure)?;
     if !a.quiet {
         say!("{} runs: {}", rows.len(), shard_run::status_line(&rows));

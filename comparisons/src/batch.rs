@@ -548,18 +548,15 @@ pub fn checked_jobs(c: &Comparison, quick: bool, models: Option<&[String]>) -> R
     Ok(jobs)
 }
 
-/// Repeats per run: 1 under `--quick`, else `--repeats`, the comparison's, or 1.
-pub fn repeats_of(c: &Comparison, opts: &BatchOptions) -> usize {
-    if opts.quick {
-        1
-    } else {
-        opts.repeats.or(c.repeats).unwrap_or(1)
-    }
+/// Repeats per run: 1 under `--quick`, else `--repeats` (`repeats`), the
+/// comparison's, or 1.
+pub fn repeats_of(c: &Comparison, quick: bool, repeats: Option<usize>) -> usize {
+    if quick { 1 } else { repeats.or(c.repeats).unwrap_or(1) }
 }
 
-/// Wall-clock limit per run (s): `--timeout`, the comparison's, or 300.
-pub fn timeout_of(c: &Comparison, opts: &BatchOptions) -> f64 {
-    opts.timeout_s.or(c.timeout_s).unwrap_or(300.0)
+/// Wall-clock limit per run (s): `--timeout` (`timeout_s`), the comparison's, or 300.
+pub fn timeout_of(c: &Comparison, timeout_s: Option<f64>) -> f64 {
+    timeout_s.or(c.timeout_s).unwrap_or(300.0)
 }
 
 /// Run a comparison and write its report to `opts.out`. Returns the rows.
@@ -570,8 +567,8 @@ pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultR
     crate::outdir::check_replaceable(&opts.out, opts.force)?;
     let jobs = checked_jobs(c, opts.quick, opts.models.as_deref())?;
     let haptic_jobs = c.haptic_jobs(opts.quick, opts.models.as_deref())?;
-    let repeats = repeats_of(c, opts);
-    let timeout = timeout_of(c, opts);
+    let repeats = repeats_of(c, opts.quick, opts.repeats);
+    let timeout = timeout_of(c, opts.timeout_s);
     let tmp = temp_sibling(&opts.out).map_err(io("cannot create the temporary report folder"))?;
     let result = (|| -> Result<Vec<ResultRow>, BatchError> {
         crate::outdir::write_marker(&tmp).map_err(io("cannot write the report marker"))?;

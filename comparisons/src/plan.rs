@@ -98,13 +98,32 @@ pub struct PlanPoint {
 
 /// The run plan of a sharded comparison (`plan.json`). Deterministic: the
 /// same comparison, options, commit and shard count give the same bytes,
-/// so shards that start at once may each write it.
+/// so shards that start at once may each write it. Its settings read
+/// directly on the plan (`plan.shards`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Plan {
     /// [`PLAN_FORMAT`].
     pub format: String,
     /// Comparison name.
     pub comparison: String,
+    /// What the plan was made with besides the comparison.
+    #[serde(flatten)]
+    pub settings: PlanSettings,
+    /// Every point, in the comparison's order (the order of `results.csv`).
+    pub points: Vec<PlanPoint>,
+}
+
+impl std::ops::Deref for Plan {
+    type Target = PlanSettings;
+
+    fn deref(&self) -> &PlanSettings {
+        &self.settings
+    }
+}
+
+/// What a plan is made from besides the comparison's jobs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PlanSettings {
     /// [`file_hash`] of the comparison file.
     pub comparison_hash: String,
     /// Commit of the code ([`crate::batch::git_commit`]).
@@ -112,27 +131,6 @@ pub struct Plan {
     /// Quick sweeps.
     pub quick: bool,
     /// Only these models (`None`: the comparison's own selection).
-    pub models: Option<Vec<String>>,
-    /// Repeats per run.
-    pub repeats: usize,
-    /// Wall-clock limit per run (s).
-    pub timeout_s: f64,
-    /// Shard count.
-    pub shards: usize,
-    /// Every point, in the comparison's order (the order of `results.csv`).
-    pub points: Vec<PlanPoint>,
-}
-
-/// What a plan is made from besides the comparison's jobs.
-#[derive(Debug, Clone)]
-pub struct PlanSettings {
-    /// [`file_hash`] of the comparison file.
-    pub comparison_hash: String,
-    /// Commit of the code.
-    pub commit: String,
-    /// Quick sweeps.
-    pub quick: bool,
-    /// Only these models.
     pub models: Option<Vec<String>>,
     /// Repeats per run.
     pub repeats: usize,
@@ -173,13 +171,7 @@ impl Plan {
         Ok(Plan {
             format: PLAN_FORMAT.into(),
             comparison: c.name.clone(),
-            comparison_hash: settings.comparison_hash,
-            commit: settings.commit,
-            quick: settings.quick,
-            models: settings.models,
-            repeats: settings.repeats,
-            timeout_s: settings.timeout_s,
-            shards: settings.shards,
+            settings,
             points,
         })
     }

@@ -82,7 +82,6 @@ fn scenario_table(g: &Group, st: &Styles) -> Block {
     }
     header.extend([
         "status".into(),
-        "status".into(),
         if g.metric.is_empty() {
             "primary error".into()
         } else {
