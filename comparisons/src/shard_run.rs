@@ -167,6 +167,52 @@ pub fn ensure_plan(dir: &Path, plan: &Plan) -> Result<(), UsageError> {
     }
 }
 
+/// The machine a shard runs on, as its point records name it.
+struct Machine {
+    host: String,
+    machine: String,
+    cores: usize,
+}
+
+impl Machine {
+    fn this() -> Self {
+        Machine {
+            host: host_name(),
+            machine: batch::machine_description(),
+            cores: batch::cores(),
+        }
+    }
+
+    /// The record of `point` of `plan`, run by shard `index` on this
+    /// machine with `threads` threads in `wall_s` seconds, its result `row`.
+    fn record(
+        &self,
+        plan: &Plan,
+        point: &PlanPoint,
+        index: usize,
+        threads: usize,
+        wall_s: f64,
+        row: &ResultRow,
+    ) -> PointRecord {
+        PointRecord {
+            format: POINT_FORMAT.into(),
+            id: point.id.clone(),
+            shard: index,
+            shards: plan.shards,
+            comparison: plan.comparison.clone(),
+            comparison_hash: plan.comparison_hash.clone(),
+            commit: plan.commit.clone(),
+            host: self.host.clone(),
+            machine: self.machine.clone(),
+            cores: self.cores,
+            threads,
+            finished: batch::utc_now(),
+            wall_s,
+            cells: surgbench_reports::row_cells(row),
+        }
+    }
+}
+
 /// What one shard run did.
 #[derive(Debug, Clone, Default)]
 pub struct ShardOutcome {
@@ -200,8 +246,7 @@ pub fn run_shard(
     for d in [&points_dir, &runs] {
         std::fs::create_dir_all(d).map_err(|e| BatchError::Io(format!("cannot create {}: {e}", d.display())))?;
     }
-    let host = host_name();
-    let machine = batch::machine_description();
+    let here = Machine::this();
     if jobs.len() != plan.points.len() {
         return Err(BatchError::Io(format!(
             "the plan has {} points but {} jobs were given",
@@ -222,23 +267,8 @@ pub fn run_shard(
         }
         let started = Instant::now();
         let mut row = batch::run_job(c, job, &runs, opts, plan.repeats, plan.timeout_s)?;
-        row.host = host.clone();
-        let rec = PointRecord {
-            format: POINT_FORMAT.into(),
-            id: point.id.clone(),
-            shard: index,
-            shards: plan.shards,
-            comparison: plan.comparison.clone(),
-            comparison_hash: plan.comparison_hash.clone(),
-            commit: plan.commit.clone(),
-            host: host.clone(),
-            machine: machine.clone(),
-            cores: batch::cores(),
-            threads: opts.threads,
-            finished: batch::utc_now(),
-            wall_s: started.elapsed().as_secs_f64(),
-            cells: surgbench_reports::row_cells(&row),
-        };
+        row.host = here.host.clone();
+        let rec = here.record(plan, point, index, opts.threads, started.elapsed().as_secs_f64(), &row);
         let text = serde_json::to_string_pretty(&rec).map_err(|e| BatchError::Io(e.to_string()))? + "\n";
         write_atomic(&path, text.as_bytes())
             .map_err(|e| BatchError::Io(format!("cannot write {}: {e}", path.display())))?;
