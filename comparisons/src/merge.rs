@@ -181,6 +181,8 @@ fn merged_info(g: &Gathered, opts: &MergeOptions) -> RunInfo {
         machine,
         cores: first.map_or(0, |r| r.cores),
         threads: first.map_or(0, |r| r.threads),
+        // Not known: the shards' binaries may have been built anywhere
+        // (the commit above is what they share); the page says "(unknown)".
         rustc: String::new(),
         crate_versions: batch::crate_versions(),
         command: opts.command.clone(),
