@@ -1,4 +1,6 @@
-//! `surgbench`: run the standard comparison, one run, or re-render a report.
+//! `surgbench`: run the standard comparison, one run, or re-render a report;
+//! plan, run and merge a comparison sharded over a cluster's array jobs
+//! ([`cluster`]).
 //!
 //! Exit codes: 0 success, 1 a run or write failed at runtime, 2 bad usage
 //! (unknown scenario/model/parameter, out-of-range value, malformed file,
@@ -7,7 +9,9 @@
 //! SIGTERM stop their child (if any), remove their temporary files, write
 //! nothing and exit 130 or 143; a `run-one` or `haptic` child whose `run`
 //! was killed by SIGKILL ends itself with exit 1
-//! ([`surgbench_comparisons::child`]).
+//! ([`surgbench_comparisons::child`]). `merge` exits 1 when points are
+//! missing (without `--partial`) and 2 for folders of another comparison
+//! or commit (without `--allow-mixed`), writing nothing in both cases.
 
 use clap::{Args, Parser, Subcommand};
 
@@ -19,9 +23,11 @@ macro_rules! say {
         let _ = writeln!(std::io::stdout(), $($t)*);
     }};
 }
+mod cluster;
+
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use surgbench_comparisons::batch::{self, BatchError, BatchOptions};
+use surgbench_comparisons::batch::{self, BatchOptions};
 use surgbench_comparisons::comparison::Comparison;
 use surgbench_comparisons::datasets::project_root;
 use surgbench_comparisons::gate::{self, GateError};
@@ -31,8 +37,7 @@ use surgbench_comparisons::runner::{RunOptions, RunSummary};
 use surgbench_comparisons::scenario::parse_overrides;
 use surgbench_comparisons::user_mesh::UserMesh;
 use surgbench_comparisons::{UsageError, registry};
-use surgbench_comparisons::{child, interrupt, outdir};
-use surgbench_reports::Status;
+use surgbench_comparisons::{child, interrupt, outdir, plan, shard_run};
 
 #[derive(Parser)]
 #[command(
@@ -52,8 +57,16 @@ struct Cli {
 enum Cmd {
     /// List scenarios (with parameters and defaults), models (with capabilities) and comparisons.
     List,
-    /// Run a comparison (default: comparisons/standard.toml) and write a report.
+    /// Run a comparison (default: comparisons/standard.toml) and write a
+    /// report; with --shard K/N (or an array job's index variable) run one
+    /// shard of it into a folder the shards share.
     Run(RunArgs),
+    /// Plan a sharded run: every point with its stable id and shard,
+    /// written to DIR/plan.json; prints how many points each shard gets.
+    Plan(cluster::PlanArgs),
+    /// Gather the points of sharded run folders into one report; names the
+    /// points missing or failed (exit 1 if any are missing, unless --partial).
+    Merge(cluster::MergeArgs),
     /// Run one scenario with one model at one fidelity; writes summary.json,
     /// observables.csv and final_state.csv into --out.
     RunOne(RunOneArgs),
@@ -74,9 +87,9 @@ enum Cmd {
     GateWorkload(GateWorkloadArgs),
 }
 
-/// `surgbench run`.
+/// What a comparison run covers: shared by `run` and `plan`.
 #[derive(Args)]
-struct RunArgs {
+struct SweepArgs {
     /// Comparison name (comparisons/NAME.toml in the project root: the nearest
     /// folder up from here holding comparisons/, or $SURGBENCH_ROOT) or path to a .toml file.
     #[arg(default_value = "standard")]
@@ -87,6 +100,34 @@ struct RunArgs {
     /// Smaller sweeps, one repeat: a report in a minute or two.
     #[arg(long)]
     quick: bool,
+    /// Repeats per run (overrides the comparison; timings pooled).
+    #[arg(long)]
+    repeats: Option<usize>,
+    /// Wall-clock limit per run in seconds (overrides the comparison).
+    #[arg(long)]
+    timeout: Option<f64>,
+}
+
+impl SweepArgs {
+    /// `--repeats` and `--timeout` in range.
+    fn check(&self) -> Result<(), Failure> {
+        if self.repeats == Some(0) {
+            return Err(Failure::Usage("--repeats must be >= 1".into()));
+        }
+        if let Some(t) = self.timeout
+            && !(t > 0.0)
+        {
+            return Err(Failure::Usage(format!("--timeout must be > 0 s, got {t}")));
+        }
+        Ok(())
+    }
+}
+
+/// `surgbench run`.
+#[derive(Args)]
+struct RunArgs {
+    #[command(flatten)]
+    sweep: SweepArgs,
     /// Report folder (default: reports/out/latest in the project root: the
     /// nearest folder up from here holding comparisons/, or $SURGBENCH_ROOT),
     /// replaced as a whole: an
@@ -100,15 +141,39 @@ struct RunArgs {
     /// Threads per run (RAYON_NUM_THREADS); runs themselves go one at a time.
     #[arg(long, default_value_t = 1)]
     threads: usize,
-    /// Repeats per run (overrides the comparison; timings pooled).
-    #[arg(long)]
-    repeats: Option<usize>,
-    /// Wall-clock limit per run in seconds (overrides the comparison).
-    #[arg(long)]
-    timeout: Option<f64>,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
+    /// Run shard K of N (K from 0) into the shared folder --out. Without it,
+    /// an array job's index is read from SLURM_ARRAY_TASK_ID,
+    /// JOB_COMPLETION_INDEX, AWS_BATCH_JOB_ARRAY_INDEX or BATCH_TASK_INDEX.
+    #[arg(long, value_name = "K/N")]
+    shard: Option<String>,
+    /// Shard count, where the index comes without one (JOB_COMPLETION_INDEX)
+    /// and --out holds no plan yet.
+    #[arg(long, value_name = "N")]
+    shards: Option<usize>,
+    /// Run a sharded run's finished points again instead of skipping them.
+    #[arg(long)]
+    no_resume: bool,
+}
+
+impl RunArgs {
+    /// The batch runner's options for this command, writing into `out`.
+    fn batch_options(&self, out: PathBuf) -> Result<BatchOptions, Failure> {
+        Ok(BatchOptions {
+            quick: self.sweep.quick,
+            models: self.sweep.models.clone(),
+            out,
+            force: self.force,
+            threads: self.threads,
+            repeats: self.sweep.repeats,
+            timeout_s: self.sweep.timeout,
+            quiet: self.quiet,
+            exe: own_exe()?,
+            command: std::env::args().collect::<Vec<_>>().join(" "),
+        })
+    }
 }
 
 /// The scenario x model x parameters x fidelity a single-run command takes.
@@ -331,6 +396,8 @@ fn main() -> ExitCode {
             Ok(())
         }
         Cmd::Run(a) => cmd_run(a),
+        Cmd::Plan(a) => cluster::cmd_plan(a),
+        Cmd::Merge(a) => cluster::cmd_merge(a),
         Cmd::RunOne(a) => cmd_run_one(&a),
         Cmd::Report { dir } => cmd_report(&dir),
         Cmd::Gate(a) => cmd_gate(&a),
@@ -369,47 +436,32 @@ fn cmd_run(a: RunArgs) -> Result<(), Failure> {
     if a.threads == 0 {
         return Err(Failure::Usage("--threads must be >= 1".into()));
     }
-    if a.repeats == Some(0) {
-        return Err(Failure::Usage("--repeats must be >= 1".into()));
+    a.sweep.check()?;
+    let shard = match &a.shard {
+        Some(text) => Some(plan::parse_shard(text)?),
+        None => plan::shard_from_env(&|k| std::env::var(k).ok())?,
+    };
+    match shard {
+        Some(s) => return cluster::cmd_run_sharded(a, s),
+        None if a.shards.is_some() => {
+            return Err(Failure::Usage(
+                "--shards goes with --shard K/N or an array job's index variable".into(),
+            ));
+        }
+        None => {}
     }
-    if let Some(t) = a.timeout
-        && !(t > 0.0)
-    {
-        return Err(Failure::Usage(format!("--timeout must be > 0 s, got {t}")));
-    }
-    let c = Comparison::load(&find_comparison(&a.comparison)?)?;
+    let c = Comparison::load(&find_comparison(&a.sweep.comparison)?)?;
     // From here on a SIGINT/SIGTERM stops the running child and removes the
     // temporary report folder instead of orphaning both.
     install_interrupt()?;
-    let out = a.out.unwrap_or_else(|| project_root().join("reports/out/latest"));
-    let opts = BatchOptions {
-        quick: a.quick,
-        models: a.models,
-        out: out.clone(),
-        force: a.force,
-        threads: a.threads,
-        repeats: a.repeats,
-        timeout_s: a.timeout,
-        quiet: a.quiet,
-        exe: own_exe()?,
-        command: std::env::args().collect::<Vec<_>>().join(" "),
-    };
-    let rows = batch::run_comparison(&c, &opts).map_err(|e| match e {
-        BatchError::Usage(u) => Failure::Usage(u.0),
-        BatchError::Io(s) => Failure::Runtime(s),
-        e @ BatchError::Interrupted(sig) => Failure::Interrupted(e.to_string(), sig),
-    })?;
+    let out = a
+        .out
+        .clone()
+        .unwrap_or_else(|| project_root().join("reports/out/latest"));
+    let opts = a.batch_options(out.clone())?;
+    let rows = batch::run_comparison(&c, &opts).map_err(cluster::batch_failure)?;
     if !a.quiet {
-        let count = |s: Status| rows.iter().filter(|r| r.status == s).count();
-        say!(
-            "{} runs: {} ok, {} unstable, {} unsupported, {} failed, {} timeout",
-            rows.len(),
-            count(Status::Ok),
-            count(Status::Unstable),
-            count(Status::Unsupported),
-            count(Status::Failed),
-            count(Status::Timeout)
-        );
+        say!("{} runs: {}", rows.len(), shard_run::status_line(&rows));
         say!("report: {}", out.join("index.html").display());
     }
     Ok(())

@@ -218,9 +218,7 @@ pub fn folder_name(s: &str) -> String {
     if slug.len() <= MAX_NAME {
         return slug;
     }
-    let hash = s.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
-        (h ^ b as u64).wrapping_mul(0x0100_0000_01b3)
-    });
+    let hash = surgbench_reports::fnv1a(s.as_bytes());
     // The slug is ASCII, so any byte index is a character boundary.
     format!("{}~{hash:016x}", &slug[..80])
 }
@@ -244,9 +242,9 @@ pub fn run_dir_of(job: &Job) -> PathBuf {
         .join(folder_name(&fid))
 }
 
-/// Run one job in a child process; returns its row, or the signal that
-/// interrupted it.
-fn run_job(
+/// Run one job in a child process (its files in `runs/..` beside `runs`,
+/// see [`run_dir_of`]); returns its row, or the signal that interrupted it.
+pub(crate) fn run_job(
     c: &Comparison,
     job: &Job,
     runs: &Path,
@@ -443,8 +441,8 @@ pub fn crate_versions() -> BTreeMap<String, String> {
     out
 }
 
-/// Facts about this machine and build, for `summary.json`.
-pub fn run_info(comparison: &str, opts: &BatchOptions) -> RunInfo {
+/// This machine's CPU model, OS and architecture, for the record.
+pub fn machine_description() -> String {
     let cpu = std::fs::read_to_string("/proc/cpuinfo")
         .ok()
         .and_then(|s| {
@@ -453,12 +451,37 @@ pub fn run_info(comparison: &str, opts: &BatchOptions) -> RunInfo {
                 .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
         })
         .unwrap_or_else(|| std::env::consts::ARCH.to_string());
+    format!("{cpu} ({} {})", std::env::consts::OS, std::env::consts::ARCH)
+}
+
+/// Environment variable naming the commit when there is no git checkout to
+/// ask (a container image built from a source archive).
+pub const COMMIT_VAR: &str = "SURGBENCH_COMMIT";
+
+/// The commit of the code that runs: [`COMMIT_VAR`] when set, else
+/// `git rev-parse --short=12 HEAD` in the current folder, else `unknown`.
+pub fn git_commit() -> String {
+    std::env::var(COMMIT_VAR)
+        .ok()
+        .map(|c| c.trim().to_string())
+        .filter(|c| !c.is_empty())
+        .or_else(|| command_output("git", &["rev-parse", "--short=12", "HEAD"]))
+        .unwrap_or_else(|| "unknown".into())
+}
+
+/// Cores on this machine.
+pub fn cores() -> usize {
+    std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
+}
+
+/// Facts about this machine and build, for `summary.json`.
+pub fn run_info(comparison: &str, opts: &BatchOptions) -> RunInfo {
     RunInfo {
         comparison: comparison.into(),
         date: utc_now(),
-        commit: command_output("git", &["rev-parse", "--short=12", "HEAD"]).unwrap_or_else(|| "unknown".into()),
-        machine: format!("{cpu} ({} {})", std::env::consts::OS, std::env::consts::ARCH),
-        cores: std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
+        commit: git_commit(),
+        machine: machine_description(),
+        cores: cores(),
         threads: opts.threads,
         rustc: command_output("rustc", &["--version"]).unwrap_or_else(|| "unknown".into()),
         crate_versions: crate_versions(),
@@ -506,31 +529,46 @@ fn interrupted() -> Result<(), BatchError> {
     crate::interrupt::pending().map_or(Ok(()), |sig| Err(BatchError::Interrupted(sig)))
 }
 
+/// The runs of comparison `c` (quick sweeps or full, `models` only),
+/// validated before anything runs: under `quick` the full sweeps and haptic
+/// loops are validated too, so that a mistake in them shows now, not in the
+/// long run; no runs at all, or one run listed twice, is a usage error.
+pub fn checked_jobs(c: &Comparison, quick: bool, models: Option<&[String]>) -> Result<Vec<Job>, crate::UsageError> {
+    if quick {
+        c.jobs(false, models)?;
+        c.haptic_jobs(false, models)?;
+    }
+    let jobs = c.jobs(quick, models)?;
+    if jobs.is_empty() {
+        return Err(crate::UsageError(
+            "the comparison selects no runs (no models match?)".into(),
+        ));
+    }
+    check_distinct_folders(&jobs)?;
+    Ok(jobs)
+}
+
+/// Repeats per run: 1 under `--quick`, else `--repeats` (`repeats`), the
+/// comparison's, or 1.
+pub fn repeats_of(c: &Comparison, quick: bool, repeats: Option<usize>) -> usize {
+    if quick { 1 } else { repeats.or(c.repeats).unwrap_or(1) }
+}
+
+/// Wall-clock limit per run (s): `--timeout` (`timeout_s`), the comparison's, or 300.
+pub fn timeout_of(c: &Comparison, timeout_s: Option<f64>) -> f64 {
+    timeout_s.or(c.timeout_s).unwrap_or(300.0)
+}
+
 /// Run a comparison and write its report to `opts.out`. Returns the rows.
 /// On any error, an interruption included, the temporary folder is removed
 /// and `opts.out` is left as it was.
 pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultRow>, BatchError> {
     let started = Instant::now();
     crate::outdir::check_replaceable(&opts.out, opts.force)?;
-    if opts.quick {
-        // The quick sweeps are a subset of the comparison: its full sweeps
-        // are validated too, so that a mistake in them shows now, not in
-        // the long run.
-        c.jobs(false, opts.models.as_deref())?;
-        c.haptic_jobs(false, opts.models.as_deref())?;
-    }
-    let jobs = c.jobs(opts.quick, opts.models.as_deref())?;
+    let jobs = checked_jobs(c, opts.quick, opts.models.as_deref())?;
     let haptic_jobs = c.haptic_jobs(opts.quick, opts.models.as_deref())?;
-    if jobs.is_empty() {
-        return Err(crate::UsageError("the comparison selects no runs (no models match?)".into()).into());
-    }
-    check_distinct_folders(&jobs)?;
-    let repeats = if opts.quick {
-        1
-    } else {
-        opts.repeats.or(c.repeats).unwrap_or(1)
-    };
-    let timeout = opts.timeout_s.or(c.timeout_s).unwrap_or(300.0);
+    let repeats = repeats_of(c, opts.quick, opts.repeats);
+    let timeout = timeout_of(c, opts.timeout_s);
     let tmp = temp_sibling(&opts.out).map_err(io("cannot create the temporary report folder"))?;
     let result = (|| -> Result<Vec<ResultRow>, BatchError> {
         crate::outdir::write_marker(&tmp).map_err(io("cannot write the report marker"))?;

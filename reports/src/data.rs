@@ -54,6 +54,11 @@ pub struct ResultRow {
     pub primary_error: String,
     /// This run's folder relative to the report folder (`""` if none); holds `observables.csv`.
     pub run_dir: String,
+    /// Host name of the machine the run's timings come from (`""` = not
+    /// recorded: a report from one machine). Written as the optional
+    /// `host` column ([`OPTIONAL_COLUMNS`]) when any row has one.
+    #[serde(default)]
+    pub host: String,
     /// Error metrics by name, e.g. `"tip_error_rel"`, `"rms_node_error_m"` (units in the name).
     pub metrics: BTreeMap<String, f64>,
 }
@@ -150,6 +155,16 @@ pub const FIXED_COLUMNS: [&str; 29] = [
     "run_dir",
 ];
 
+/// Columns of `results.csv` written only when some row fills them and read
+/// when present: `host`, the machine each run's timings come from (a
+/// report merged from several machines' shards).
+pub const OPTIONAL_COLUMNS: [&str; 1] = ["host"];
+
+/// Whether `name` is a fixed or optional column (never a metric).
+fn is_column(name: &str) -> bool {
+    FIXED_COLUMNS.contains(&name) || OPTIONAL_COLUMNS.contains(&name)
+}
+
 /// A field of [`ResultRow`] seen as a CSV cell.
 enum Cell<'a> {
     Text(&'a mut String),
@@ -229,14 +244,15 @@ fn parse_bool(s: &str) -> Result<Option<bool>, String> {
 
 /// Writes `rows` to `path` as the tidy `results.csv`.
 ///
-/// Header: the [`FIXED_COLUMNS`] in order, then one column per metric name
-/// (union over all rows, sorted). `None` and absent metrics are empty cells.
+/// Header: the [`FIXED_COLUMNS`] in order, then `host` when any row names
+/// one ([`OPTIONAL_COLUMNS`]), then one column per metric name (union over
+/// all rows, sorted). `None` and absent metrics are empty cells.
 /// A metric named like a fixed column, or with an empty name, is refused
 /// ([`ReportError::Invalid`]) because it could not be read back unambiguously.
 pub fn write_results_csv(path: &Path, rows: &[ResultRow]) -> Result<(), ReportError> {
     let metric_names: BTreeSet<&str> = rows.iter().flat_map(|r| r.metrics.keys().map(String::as_str)).collect();
     for m in &metric_names {
-        if m.trim().is_empty() || FIXED_COLUMNS.contains(m) {
+        if m.trim().is_empty() || is_column(m) {
             return Err(ReportError::Invalid {
                 path: path.to_path_buf(),
                 message: format!("metric name {m:?} is empty or clashes with a fixed column"),
@@ -244,23 +260,19 @@ pub fn write_results_csv(path: &Path, rows: &[ResultRow]) -> Result<(), ReportEr
         }
     }
     let mut w = csv::Writer::from_path(path).map_err(|e| ReportError::csv(path, e))?;
+    let with_host = rows.iter().any(|r| !r.host.is_empty());
     let header: Vec<&str> = FIXED_COLUMNS
         .iter()
         .copied()
+        .chain(with_host.then_some(OPTIONAL_COLUMNS[0]))
         .chain(metric_names.iter().copied())
         .collect();
     w.write_record(&header).map_err(|e| ReportError::csv(path, e))?;
     for row in rows {
         let mut row = row.clone();
-        let mut rec: Vec<String> = Vec::with_capacity(header.len());
-        for i in 0..FIXED_COLUMNS.len() {
-            rec.push(match cell(&mut row, i) {
-                Cell::Text(s) => s.clone(),
-                Cell::Num(v) => v.map(format_f64).unwrap_or_default(),
-                Cell::Bool(b) => b.map(|b| b.to_string()).unwrap_or_default(),
-                Cell::Status(v) => v.to_string(),
-                Cell::End(v) => v.to_string(),
-            });
+        let mut rec: Vec<String> = (0..FIXED_COLUMNS.len()).map(|i| fixed_text(&mut row, i)).collect();
+        if with_host {
+            rec.push(row.host.clone());
         }
         for m in &metric_names {
             rec.push(row.metrics.get(*m).copied().map(format_f64).unwrap_or_default());
@@ -268,6 +280,68 @@ pub fn write_results_csv(path: &Path, rows: &[ResultRow]) -> Result<(), ReportEr
         w.write_record(&rec).map_err(|e| ReportError::csv(path, e))?;
     }
     w.flush().map_err(|e| ReportError::io(path, e))
+}
+
+/// The text of fixed column `i` (index into [`FIXED_COLUMNS`]) as
+/// `results.csv` writes it.
+fn fixed_text(row: &mut ResultRow, i: usize) -> String {
+    match cell(row, i) {
+        Cell::Text(s) => s.clone(),
+        Cell::Num(v) => v.map(format_f64).unwrap_or_default(),
+        Cell::Bool(b) => b.map(|b| b.to_string()).unwrap_or_default(),
+        Cell::Status(v) => v.to_string(),
+        Cell::End(v) => v.to_string(),
+    }
+}
+
+/// Sets fixed column `i` of `row` from its `results.csv` text.
+fn set_fixed(row: &mut ResultRow, i: usize, text: &str) -> Result<(), String> {
+    match cell(row, i) {
+        Cell::Text(s) => {
+            *s = text.to_string();
+            Ok(())
+        }
+        Cell::Num(v) => parse_f64(text).map(|x| *v = x),
+        Cell::Bool(b) => parse_bool(text).map(|x| *b = x),
+        Cell::Status(v) => text.trim().parse().map(|x| *v = x),
+        Cell::End(v) => text.trim().parse().map(|x| *v = x),
+    }
+}
+
+/// One row as the cells `results.csv` would hold, by column name: every
+/// fixed column, `host` when set, and each metric. Numbers are in the
+/// round-trip form of [`format_f64`], so [`row_from_cells`] gives back the
+/// same row bit for bit (a sharded run's point files store rows this way).
+pub fn row_cells(row: &ResultRow) -> BTreeMap<String, String> {
+    let mut row = row.clone();
+    let mut out: BTreeMap<String, String> = (0..FIXED_COLUMNS.len())
+        .map(|i| (FIXED_COLUMNS[i].to_string(), fixed_text(&mut row, i)))
+        .collect();
+    if !row.host.is_empty() {
+        out.insert(OPTIONAL_COLUMNS[0].into(), row.host.clone());
+    }
+    for (k, v) in &row.metrics {
+        out.insert(k.clone(), format_f64(*v));
+    }
+    out
+}
+
+/// The row [`row_cells`] describes. Every fixed column must be present; any
+/// cell that is not a fixed or optional column is a metric (empty: absent).
+/// Errors name the column and the value.
+pub fn row_from_cells(cells: &BTreeMap<String, String>) -> Result<ResultRow, String> {
+    let mut row = ResultRow::default();
+    for (i, name) in FIXED_COLUMNS.iter().enumerate() {
+        let text = cells.get(*name).ok_or_else(|| format!("missing column `{name}`"))?;
+        set_fixed(&mut row, i, text).map_err(|m| format!("column `{name}`: {m}"))?;
+    }
+    row.host = cells.get(OPTIONAL_COLUMNS[0]).cloned().unwrap_or_default();
+    for (name, text) in cells.iter().filter(|(k, _)| !is_column(k)) {
+        if let Some(v) = parse_f64(text).map_err(|m| format!("column `{name}`: {m}"))? {
+            row.metrics.insert(name.clone(), v);
+        }
+    }
+    Ok(row)
 }
 
 /// A flexible CSV reader on `path` and its header names, trimmed.
@@ -308,10 +382,11 @@ pub fn read_results_csv(path: &Path) -> Result<Vec<ResultRow>, ReportError> {
             .position(|h| h == name)
             .ok_or_else(|| ReportError::parse(path, 1, name, "missing required column"))?;
     }
+    let host_col = header.iter().position(|h| h == OPTIONAL_COLUMNS[0]);
     let metric_cols: Vec<(usize, &str)> = header
         .iter()
         .enumerate()
-        .filter(|(_, h)| !FIXED_COLUMNS.contains(&h.as_str()))
+        .filter(|(_, h)| !is_column(h))
         .map(|(j, h)| (j, h.as_str()))
         .collect();
 
@@ -333,18 +408,10 @@ pub fn read_results_csv(path: &Path) -> Result<Vec<ResultRow>, ReportError> {
         }
         let mut row = ResultRow::default();
         for (i, &j) in fixed.iter().enumerate() {
-            let text = &rec[j];
-            let res = match cell(&mut row, i) {
-                Cell::Text(s) => {
-                    *s = text.to_string();
-                    Ok(())
-                }
-                Cell::Num(v) => parse_f64(text).map(|x| *v = x),
-                Cell::Bool(b) => parse_bool(text).map(|x| *b = x),
-                Cell::Status(v) => text.trim().parse().map(|x| *v = x),
-                Cell::End(v) => text.trim().parse().map(|x| *v = x),
-            };
-            res.map_err(|m| ReportError::parse(path, line, FIXED_COLUMNS[i], m))?;
+            set_fixed(&mut row, i, &rec[j]).map_err(|m| ReportError::parse(path, line, FIXED_COLUMNS[i], m))?;
+        }
+        if let Some(j) = host_col {
+            row.host = rec[j].to_string();
         }
         for &(j, name) in &metric_cols {
             if let Some(v) = parse_f64(&rec[j]).map_err(|m| ReportError::parse(path, line, name, m))? {

@@ -175,3 +175,13 @@ pub fn md_escape(s: &str) -> String {
     }
     out
 }
+
+/// FNV-1a 64-bit hash (Fowler, Noll, Vo: offset basis 0xcbf29ce484222325,
+/// prime 0x100000001b3) of `bytes`: a short tag that is the same on every
+/// machine, build and Rust version (unlike `std`'s `DefaultHasher`), for
+/// file names and the ids of a sharded run's points.
+pub fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, b| {
+        (h ^ u64::from(*b)).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use crate::analysis::coarse_to_fine;
 use crate::doc::{to_html, to_markdown};
 use crate::figure::{Line, Look, Marker, PALETTE, save};
-use crate::format::slug;
+use crate::format::{fnv1a, slug};
 use crate::{ReportError, ResultRow, RunInfo, staging};
 
 mod convergence;
@@ -144,17 +144,41 @@ fn or_unknown(s: &str) -> &str {
     if s.trim().is_empty() { "(unknown)" } else { s }
 }
 
-/// Colour and marker per model, the same in every plot (models sorted by name).
+/// Colour and marker per model, the same in every plot (models sorted by
+/// name), and the machines the timings come from.
 struct Styles {
     models: Vec<String>,
+    /// Host names the rows name, sorted; more than one means timings are
+    /// grouped by machine ([`Styles::by_machine`]).
+    hosts: Vec<String>,
 }
 
 impl Styles {
     fn new(rows: &[ResultRow]) -> Self {
         let set: BTreeSet<&str> = rows.iter().map(|r| r.model.as_str()).collect();
+        let hosts: BTreeSet<&str> = rows.iter().map(|r| r.host.as_str()).filter(|h| !h.is_empty()).collect();
         Styles {
             models: set.into_iter().map(String::from).collect(),
+            hosts: hosts.into_iter().map(String::from).collect(),
         }
+    }
+    /// Whether the timings come from more than one machine: speed figures
+    /// are then grouped by machine, never compared across machines.
+    fn by_machine(&self) -> bool {
+        self.hosts.len() > 1
+    }
+    /// The machine groups of speed figures: each host, or one group (`""`)
+    /// for a report from one machine.
+    fn machine_groups(&self) -> Vec<&str> {
+        if self.by_machine() {
+            self.hosts.iter().map(String::as_str).collect()
+        } else {
+            vec![""]
+        }
+    }
+    /// Whether `r`'s timings belong to machine group `host` ([`Styles::machine_groups`]).
+    fn on_machine(&self, r: &ResultRow, host: &str) -> bool {
+        !self.by_machine() || r.host == host
     }
     fn index(&self, model: &str) -> usize {
         self.models.iter().position(|m| m == model).unwrap_or(0)
@@ -245,13 +269,6 @@ fn usable(v: Option<f64>) -> Option<f64> {
     v.filter(|x| x.is_finite() && *x > 0.0)
 }
 
-/// FNV-1a 64-bit hash (Fowler, Noll, Vo): a stable short tag for long names.
-fn fnv1a(s: &str) -> u64 {
-    s.bytes().fold(0xcbf2_9ce4_8422_2325, |h, b| {
-        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
-    })
-}
-
 /// A file-name stem for a group, unique among `stems`.
 fn group_stem(key: (&str, &str, &str), many_comparisons: bool, stems: &mut BTreeSet<String>) -> String {
     let (comparison, scenario, params) = key;
@@ -265,7 +282,7 @@ fn group_stem(key: (&str, &str, &str), many_comparisons: bool, stems: &mut BTree
     if base.len() > 90 {
         // Keep file names short; the hash keeps distinct long names distinct.
         let cut: String = base.chars().take(72).collect();
-        base = format!("{cut}-{:016x}", fnv1a(&base));
+        base = format!("{cut}-{:016x}", fnv1a(base.as_bytes()));
     }
     let mut stem = base.clone();
     let mut i = 2;

@@ -52,10 +52,17 @@ struct Omitted {
 
 /// (cost, error) of `model`'s ok runs that a log-log plot can show; the
 /// others go to `omitted`.
-fn model_points(g: &Group, model: &str, cost: &Cost, omitted: &mut Omitted) -> Vec<(f64, f64)> {
+fn model_points(
+    g: &Group,
+    model: &str,
+    on_machine: &dyn Fn(&ResultRow) -> bool,
+    cost: &Cost,
+    omitted: &mut Omitted,
+) -> Vec<(f64, f64)> {
     let cost_name = cost.name;
     let mut pts = Vec::new();
-    for r in g.model_rows(model).into_iter().filter(|r| r.status == Status::Ok) {
+    let ok = g.model_rows(model).into_iter().filter(|r| r.status == Status::Ok);
+    for r in ok.filter(|r| on_machine(r)) {
         match ((cost.of)(r), g.err(r)) {
             (Some(t), Some(e)) => {
                 if usable(Some(t)).is_some() && usable(Some(e)).is_some() {
@@ -113,23 +120,32 @@ pub(super) fn pareto_figure(g: &Group, st: &Styles, sec: &mut Section) -> Option
     let mut series = Vec::new();
     let mut legend = Vec::new();
     let mut omitted = Omitted::default();
-    for model in &g.models {
-        let pts = model_points(g, model, &cost, &mut omitted);
-        if pts.is_empty() {
-            continue;
+    // One series (and front) per model and machine: timings of two
+    // machines never share a front.
+    for (variant, host) in st.machine_groups().into_iter().enumerate() {
+        for model in &g.models {
+            let pts = model_points(g, model, &|r| st.on_machine(r, host), &cost, &mut omitted);
+            if pts.is_empty() {
+                continue;
+            }
+            let mut front: Vec<(f64, f64)> = pareto_front(&pts).into_iter().map(|i| pts[i]).collect();
+            front.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let look = st.look(model, variant, Line::Solid);
+            let on = if host.is_empty() {
+                String::new()
+            } else {
+                format!(" on {host}")
+            };
+            legend.push(LegendEntry {
+                look,
+                label: format!("{model}{on} ({} runs, {} on front)", pts.len(), front.len()),
+            });
+            series.push(SeriesSpec {
+                look,
+                points: pts,
+                line_points: front,
+            });
         }
-        let mut front: Vec<(f64, f64)> = pareto_front(&pts).into_iter().map(|i| pts[i]).collect();
-        front.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let look = st.look(model, 0, Line::Solid);
-        legend.push(LegendEntry {
-            look,
-            label: format!("{model} ({} runs, {} on front)", pts.len(), front.len()),
-        });
-        series.push(SeriesSpec {
-            look,
-            points: pts,
-            line_points: front,
-        });
     }
     omission_notes(&omitted, sec);
     if series.is_empty() {
@@ -162,6 +178,13 @@ pub(super) fn pareto_figure(g: &Group, st: &Styles, sec: &mut Section) -> Option
         "{}: speed ({}) vs {}, one point per ok run",
         g.title, cost.name, g.metric
     );
+    if st.by_machine() {
+        sec.notes.push(format!(
+            "Timings come from {} machines: the speed/error plot draws each model once per machine (marker and dashes \
+             tell the machines apart), with a Pareto front per machine; compare speeds only within one machine.",
+            st.hosts.len()
+        ));
+    }
     if cost.is_static {
         sec.notes.push(
             "Static scene: the speed axis is the wall time to the solution (all steps to settling), since models reach the same equilibrium with different step sizes and counts."

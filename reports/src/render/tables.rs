@@ -64,16 +64,23 @@ fn stable_text(r: &ResultRow) -> String {
     }
 }
 
-fn scenario_table(g: &Group) -> Block {
+/// The fastest median ms/step among `ok` runs on `r`'s machine (all runs
+/// when the report comes from one machine).
+fn best_time_on_machine(ok: &[&ResultRow], r: &ResultRow, st: &Styles) -> f64 {
+    ok.iter()
+        .filter(|o| st.on_machine(o, &r.host))
+        .filter_map(|o| usable(o.ms_per_step_median))
+        .fold(f64::INFINITY, f64::min)
+}
+
+fn scenario_table(g: &Group, st: &Styles) -> Block {
     let ok: Vec<&ResultRow> = g.rows.iter().copied().filter(|r| r.status == Status::Ok).collect();
     let best_err = ok.iter().filter_map(|r| usable(g.err(r))).fold(f64::INFINITY, f64::min);
-    let best_t = ok
-        .iter()
-        .filter_map(|r| usable(r.ms_per_step_median))
-        .fold(f64::INFINITY, f64::min);
-    let header = vec![
-        "model".into(),
-        "fidelity".into(),
+    let mut header = vec!["model".into(), "fidelity".into()];
+    if st.by_machine() {
+        header.push("machine".into());
+    }
+    header.extend([
         "status".into(),
         if g.metric.is_empty() {
             "primary error".into()
@@ -86,9 +93,10 @@ fn scenario_table(g: &Group) -> Block {
         "solver iters mean / max".into(),
         "stable / watchdog".into(),
         "end".into(),
-    ];
+    ]);
     let mut rows = Vec::new();
     for r in &g.rows {
+        let best_t = best_time_on_machine(&ok, r, st);
         let is_ok = r.status == Status::Ok;
         let err_cell = if is_ok {
             match g.err(r) {
@@ -116,13 +124,18 @@ fn scenario_table(g: &Group) -> Block {
             (None, None) => "—".into(),
             (a, b) => format!("{} / {}", num(a), num(b)),
         };
-        rows.push(vec![
+        let mut row = vec![
             Cell::plain(&r.model),
             Cell::plain(if r.fidelity.is_empty() {
                 "(default)"
             } else {
                 r.fidelity.as_str()
             }),
+        ];
+        if st.by_machine() {
+            row.push(Cell::plain(or_unknown(&r.host)));
+        }
+        row.extend([
             Cell {
                 text: or_unknown(r.status.as_str()).to_string(),
                 bold: false,
@@ -136,6 +149,7 @@ fn scenario_table(g: &Group) -> Block {
             Cell::plain(stable_text(r)),
             Cell::plain(if r.end == End::Unset { "—" } else { r.end.as_str() }),
         ]);
+        rows.push(row);
     }
     Block::Table { header, rows }
 }
@@ -155,8 +169,13 @@ fn summary_table(groups: &[Group], st: &Styles) -> Block {
                         .err(r)
                         .map(|e| fmt_sig(e, 3))
                         .unwrap_or_else(|| "no error value".into());
+                    let on = if st.by_machine() {
+                        format!(" on {}", or_unknown(&r.host))
+                    } else {
+                        String::new()
+                    };
                     Cell::plain(format!(
-                        "{e} at {} ms/step ({})",
+                        "{e} at {} ms/step{on} ({})",
                         num(r.ms_per_step_median),
                         if r.fidelity.is_empty() {
                             "default"
@@ -215,7 +234,7 @@ fn run_table(info: &RunInfo) -> Block {
 }
 
 /// One scenario's section: counts, table, other metrics, orders, plots, notes.
-fn scenario_section(g: &Group, sec: &Section) -> Vec<Block> {
+fn scenario_section(g: &Group, sec: &Section, st: &Styles) -> Vec<Block> {
     let mut b = Vec::new();
     b.push(Block::Heading(2, format!("Scenario: {}", g.title)));
     b.push(Block::Para(format!(
@@ -230,7 +249,7 @@ fn scenario_section(g: &Group, sec: &Section) -> Vec<Block> {
     if !g.metric_notes.is_empty() {
         b.push(Block::List(g.metric_notes.clone()));
     }
-    b.push(scenario_table(g));
+    b.push(scenario_table(g, st));
     let others: BTreeSet<&str> = g
         .rows
         .iter()
@@ -281,6 +300,15 @@ pub(super) fn page(
             "quick run: reduced sweeps and durations. Use it to check the pipeline, not to publish numbers.".into(),
         ));
     }
+    if st.by_machine() {
+        b.push(Block::Warning(format!(
+            "Timings come from {} machines ({}): speed figures are grouped by machine. Each scenario table names \
+             the machine of every run and marks the fastest run of each machine; the speed/error plots draw each \
+             machine apart. Compare timings only within one machine; errors do not depend on the machine.",
+            st.hosts.len(),
+            st.hosts.join(", ")
+        )));
+    }
     b.push(run_table(info));
     b.push(Block::Para(format!(
         "{}. Units are SI (m, kg, s, N, Pa, rad) unless a column says otherwise; wall times are in ms per step. \
@@ -298,7 +326,7 @@ pub(super) fn page(
     b.push(summary_table(groups, st));
 
     for (g, sec) in groups.iter().zip(sections) {
-        b.extend(scenario_section(g, sec));
+        b.extend(scenario_section(g, sec, st));
     }
     b
 }
