@@ -145,14 +145,19 @@ fn scene_has_the_indenter_rollers_and_needs_tissue_contact() {
 
 /// Only tissue models listing `TissueContact` run it: `fem`, `pbd-tissue`
 /// and `meshless` (per-node support radii since it runs graded meshes) are
-/// accepted, rod models are refused for having no tissue.
+/// accepted, rod models are refused for having no tissue, rod x tissue
+/// pairs for having no rod.
 #[test]
 fn models_without_tissue_contact_are_refused() {
     let run = SPHERE_INDENTATION.instantiate_at(&params(&[]), &level(0)).unwrap();
     for r in registry::models() {
         let f: &dyn ModelFactory = r.factory;
         let ok = f.check(run.scene());
-        if !f.capabilities().contains(&Capability::Tissue) {
+        if f.family() == surgbench_core::Family::Pair {
+            // A rod x tissue pair needs an instrument in a lumen.
+            let why = ok.expect_err("a pair accepted a scene without a rod").to_string();
+            assert!(why.contains("couples one rod with one tissue"), "{}: {why}", f.id());
+        } else if !f.capabilities().contains(&Capability::Tissue) {
             assert!(ok.is_err(), "{}: a rod model accepted a tissue scene", f.id());
         } else if f.capabilities().contains(&Capability::TissueContact) {
             assert!(ok.is_ok(), "{}: {:?}", f.id(), ok.err());
