@@ -169,3 +169,20 @@ fn coupled_runs_rerun_bit_identically_and_move_rigidly() {
         assert!(worst < 1e-8 * 0.08, "{scheme}: frames differ by {worst:e} m");
     }
 }
+
+/// A stiff wire (50 GPa) forced through the turn of the 1 MPa vessel with
+/// one exchange per step: the staggered wall runs away (it reached 11.5 mm
+/// before this guard, in a 2 mm lumen) and the run ends as diverged once
+/// the wall has moved past what the moved lumen models (the kernel
+/// radius), instead of finishing with a wall through the lumen.
+#[test]
+fn a_runaway_staggered_wall_ends_the_run_as_diverged() {
+    let s = run_der_fem(&[("catheter_youngs_modulus", 5e10)], &["segments=40"]);
+    eprintln!("{}: {}", s.status, s.reason);
+    assert_eq!(s.status, "unstable", "{}", s.reason);
+    assert!(
+        s.reason.contains("past the") && s.reason.contains("moved lumen"),
+        "{}",
+        s.reason
+    );
+}

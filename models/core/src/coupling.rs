@@ -601,11 +601,30 @@ impl PairModel {
         self.tissue.set_surface_forces(f)
     }
 
+    /// The tissue's contact-surface nodes now. A wall that moved along its
+    /// normal by more than the kernel radius has left what the moved lumen
+    /// models ([`DisplacedLumen`]: first order in `|d| / h`): the run
+    /// diverged (a staggered exchange blowing up ends here).
     fn surface(&self) -> Result<Vec<Vec3>, SimError> {
-        self.tissue.surface_positions().ok_or_else(|| SimError::SolverFailed {
+        let x = self.tissue.surface_positions().ok_or_else(|| SimError::SolverFailed {
             t: self.time(),
             reason: "the tissue stopped reporting its contact surface".into(),
-        })
+        })?;
+        let d = self
+            .wall
+            .normal_displacements(&x)
+            .iter()
+            .fold(0.0f64, |m, d| m.max(d.abs()));
+        if !(d <= self.wall.radius()) {
+            return Err(SimError::Diverged {
+                t: self.time(),
+                reason: format!(
+                    "the wall moved {d:.3e} m along its normal, past the {:.3e} m the moved lumen holds for",
+                    self.wall.radius()
+                ),
+            });
+        }
+        Ok(x)
     }
 
     /// Forces on the wall samples from the last exchange (N).
