@@ -28,6 +28,7 @@ use crate::scenario::{
     Declared, FeedLimit, Inputs, Metrics, ParamSet, ParamSpec, Range, Reference, ScenarioInfo, ScenarioRun, Scorer,
     Sweep, UsageError,
 };
+use crate::scenarios::vessel::wall_penetration;
 use std::f64::consts::PI;
 use std::sync::Arc;
 use surgbench_core::coupling::wall_samples;
@@ -104,20 +105,14 @@ impl Compliant {
 
 impl Scorer for CompliantScorer<'_> {
     fn observe_step(&mut self, obs: &Observation) {
-        let (Some(x), Some(rod)) = (self.r.wall_now(obs), obs.rods.first()) else {
+        let Some(x) = self.r.wall_now(obs) else {
             return;
         };
         let disp = self.r.wall.normal_displacements(&x);
         let Ok(lumen) = DisplacedLumen::new(self.r.wall.clone(), disp) else {
             return;
         };
-        let pen = rod
-            .arclength
-            .iter()
-            .zip(&rod.nodes)
-            .filter(|(s, _)| **s >= 0.0)
-            .map(|(_, p)| (lumen.distance(p) + self.r.radius).max(0.0))
-            .fold(0.0, f64::max);
+        let pen = wall_penetration(&lumen, obs, self.r.radius);
         self.max_pen = self.max_pen.max(pen);
         let t = &obs.tissues[0];
         let moved = self

@@ -361,7 +361,7 @@ fn vessel_run<R: Trajectory>(scene: Scene, run: R, energy: f64, length: f64) -> 
 /// Largest depth of the wire's surface past the wall: `max(phi(x) + r, 0)`
 /// over every node of every rod (m), from the geometry, not from the
 /// model's own contact report.
-fn wall_penetration(sdf: &dyn Sdf, obs: &Observation, wire_radius: f64) -> f64 {
+pub(crate) fn wall_penetration(sdf: &dyn Sdf, obs: &Observation, wire_radius: f64) -> f64 {
     obs.rods
         .iter()
         .flat_map(|r| r.arclength.iter().zip(&r.nodes))
