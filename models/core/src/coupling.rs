@@ -437,8 +437,6 @@ pub struct PairModel {
     wall: Arc<WallSamples>,
     /// The wall the rod steps against next: sample positions (m).
     wall_now: Vec<Vec3>,
-    /// Forces on the wall samples from the last exchange (N).
-    forces: Vec<Vec3>,
     opts: Options,
     dt: f64,
     /// Simulated time (s).
@@ -468,13 +466,11 @@ impl PairModel {
                 wall.len()
             ));
         }
-        let n = wall.len();
         Ok(Self {
             rod,
             tissue,
             wall: Arc::new(wall),
             wall_now,
-            forces: vec![Vec3::zeros(); n],
             opts,
             dt,
             t: 0.0,
@@ -597,7 +593,6 @@ impl PairModel {
     fn exchange(&mut self, f: &[Vec3], on_rod: Vec3) -> Result<(), SimError> {
         let on_wall: Vec3 = f.iter().sum();
         self.stats.max_imbalance = self.stats.max_imbalance.max((on_wall + on_rod).norm());
-        self.forces = f.to_vec();
         self.tissue.set_surface_forces(f)
     }
 
@@ -625,11 +620,6 @@ impl PairModel {
             });
         }
         Ok(x)
-    }
-
-    /// Forces on the wall samples from the last exchange (N).
-    pub fn wall_forces(&self) -> &[Vec3] {
-        &self.forces
     }
 }
 
