@@ -49,6 +49,9 @@ pub struct BatchOptions {
     pub quiet: bool,
     /// The `surgbench` executable to spawn for each run.
     pub exe: PathBuf,
+    /// Arguments before the subcommand: empty for the binary, `["-m",
+    /// "surgbench"]` when `exe` is a Python interpreter (the bindings).
+    pub exe_args: Vec<String>,
     /// The command line, for the record.
     pub command: String,
 }
@@ -302,7 +305,12 @@ fn child_command(
     fidelity: &surgbench_core::Fidelity,
 ) -> Command {
     let mut cmd = Command::new(&opts.exe);
-    cmd.arg(sub).arg("--model").arg(model).arg("--scenario").arg(scenario);
+    cmd.args(&opts.exe_args)
+        .arg(sub)
+        .arg("--model")
+        .arg(model)
+        .arg("--scenario")
+        .arg(scenario);
     for (k, v) in params {
         cmd.arg("--param").arg(format!("{k}={v}"));
     }
@@ -488,7 +496,17 @@ pub fn run_info(comparison: &str, opts: &BatchOptions) -> RunInfo {
         command: opts.command.clone(),
         quick: opts.quick,
         wall_s: 0.0,
+        python_models: python_models(),
     }
+}
+
+/// The registered models written in Python, by id, with their description.
+pub fn python_models() -> BTreeMap<String, String> {
+    crate::registry::models()
+        .into_iter()
+        .filter(|r| r.krate == crate::registry::PYTHON)
+        .map(|r| (r.factory.id().to_string(), r.factory.description().to_string()))
+        .collect()
 }
 
 /// Remove every temporary sibling of `out` ([`temp_sibling`], any pid).

@@ -63,6 +63,10 @@ pub fn models() -> Vec<Registered> {
         factory: p,
         krate: "surgbench_core::coupling",
     }));
+    v.extend(added().iter().map(|r| Registered {
+        factory: r.factory,
+        krate: r.krate,
+    }));
     if std::env::var("SURGBENCH_FAULTY_MODELS").as_deref() == Ok("1") {
         use crate::faulty;
         for f in [&faulty::PANIC, &faulty::ABORT, &faulty::HANG, &faulty::NONFINITE] {
@@ -73,6 +77,41 @@ pub fn models() -> Vec<Registered> {
         }
     }
     v
+}
+
+/// The `krate` of a model written in Python ([`register`]).
+pub const PYTHON: &str = "python";
+
+/// Models registered while the process runs (the Python bindings'
+/// `register_model`), after the built-in ones.
+static ADDED: std::sync::RwLock<Vec<Registered>> = std::sync::RwLock::new(Vec::new());
+
+fn added() -> std::sync::RwLockReadGuard<'static, Vec<Registered>> {
+    ADDED.read().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// Add a model to this process's registry from then on (a model written in
+/// Python, `krate` naming where it lives). Its id must be new and a name
+/// of lowercase letters, digits and `-`, as every model id.
+pub fn register(factory: &'static dyn ModelFactory, krate: &'static str) -> Result<(), UsageError> {
+    let id = factory.id();
+    let well_formed = id.starts_with(|c: char| c.is_ascii_lowercase())
+        && id
+            .chars()
+            .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-');
+    if !well_formed {
+        return Err(UsageError(format!(
+            "model id `{id}` must be lowercase letters, digits and `-`, starting with a letter"
+        )));
+    }
+    if models().iter().any(|r| r.factory.id() == id) {
+        return Err(UsageError(format!("a model `{id}` is already registered")));
+    }
+    ADDED
+        .write()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .push(Registered { factory, krate });
+    Ok(())
 }
 
 /// Every scenario, in report order.

@@ -40,7 +40,8 @@ impl Range {
             }
     }
 
-    fn describe(self) -> String {
+    /// The admissible values as `surgbench list` prints them (`> 0`, `in [0, 1]`).
+    pub fn describe(self) -> String {
         match self {
             Range::Positive => "> 0".into(),
             Range::NonNegative => ">= 0".into(),

@@ -120,6 +120,10 @@ pub struct RunInfo {
     pub quick: bool,
     /// Wall time of the whole comparison (s).
     pub wall_s: f64,
+    /// Models written in Python (registered through the bindings) by id,
+    /// with their description: the page marks them, since their timings
+    /// include the interpreter.
+    pub python_models: BTreeMap<String, String>,
 }
 
 /// The fixed columns of `results.csv`, in file order; metric columns follow, sorted.

@@ -16,6 +16,13 @@ pub enum Family {
 }
 
 impl Family {
+    /// The family called `name` ([`Family::name`]), if any.
+    pub fn from_name(name: &str) -> Option<Family> {
+        [Family::Rod, Family::Tissue, Family::Coupled, Family::Pair]
+            .into_iter()
+            .find(|f| f.name() == name)
+    }
+
     /// Lower-case name.
     pub fn name(self) -> &'static str {
         match self {
@@ -74,6 +81,34 @@ pub enum Capability {
 }
 
 impl Capability {
+    /// Every capability, in declaration order.
+    pub const ALL: [Capability; 19] = [
+        Capability::Rod,
+        Capability::Twist,
+        Capability::TipForce,
+        Capability::LoadRamp,
+        Capability::VaryingProperties,
+        Capability::RestCurvature,
+        Capability::Insertion,
+        Capability::Tissue,
+        Capability::PressureLoad,
+        Capability::RollerConstraint,
+        Capability::TissueContact,
+        Capability::NeedleTissue,
+        Capability::VesselContact,
+        Capability::Friction,
+        Capability::Flow,
+        Capability::MovingVessel,
+        Capability::HapticForce,
+        Capability::SurfaceForces,
+        Capability::DeformableLumen,
+    ];
+
+    /// The capability called `name` ([`Capability::name`]), if any.
+    pub fn from_name(name: &str) -> Option<Capability> {
+        Self::ALL.into_iter().find(|c| c.name() == name)
+    }
+
     /// One-line description.
     pub fn describe(self) -> &'static str {
         match self {

@@ -209,27 +209,38 @@ fn summary_table(groups: &[Group], st: &Styles) -> Block {
 fn run_table(info: &RunInfo) -> Block {
     let versions: Vec<String> = info.crate_versions.iter().map(|(k, v)| format!("{k} {v}")).collect();
     let kv = |k: &str, v: String| vec![Cell::plain(k), Cell::plain(v)];
+    let mut rows = vec![
+        kv("comparison", or_unknown(&info.comparison).into()),
+        kv("date", or_unknown(&info.date).into()),
+        kv("commit", or_unknown(&info.commit).into()),
+        kv("machine", or_unknown(&info.machine).into()),
+        kv("cores / threads", format!("{} / {}", info.cores, info.threads)),
+        kv("rustc", or_unknown(&info.rustc).into()),
+        kv("command", or_unknown(&info.command).into()),
+        kv("quick", if info.quick { "yes" } else { "no" }.into()),
+        kv("wall time [s]", fmt_sig(info.wall_s, 3)),
+        kv(
+            "crate versions",
+            if versions.is_empty() {
+                "(unknown)".into()
+            } else {
+                versions.join(", ")
+            },
+        ),
+    ];
+    if !info.python_models.is_empty() {
+        let listed: Vec<String> = info.python_models.iter().map(|(id, d)| format!("{id}: {d}")).collect();
+        rows.push(kv(
+            "models written in Python",
+            format!(
+                "{} (run through the Python bindings: their step times include the interpreter)",
+                listed.join("; ")
+            ),
+        ));
+    }
     Block::Table {
         header: vec!["run".into(), "".into()],
-        rows: vec![
-            kv("comparison", or_unknown(&info.comparison).into()),
-            kv("date", or_unknown(&info.date).into()),
-            kv("commit", or_unknown(&info.commit).into()),
-            kv("machine", or_unknown(&info.machine).into()),
-            kv("cores / threads", format!("{} / {}", info.cores, info.threads)),
-            kv("rustc", or_unknown(&info.rustc).into()),
-            kv("command", or_unknown(&info.command).into()),
-            kv("quick", if info.quick { "yes" } else { "no" }.into()),
-            kv("wall time [s]", fmt_sig(info.wall_s, 3)),
-            kv(
-                "crate versions",
-                if versions.is_empty() {
-                    "(unknown)".into()
-                } else {
-                    versions.join(", ")
-                },
-            ),
-        ],
+        rows,
     }
 }
 

@@ -179,6 +179,7 @@ pub fn info() -> RunInfo {
         command: "surgbench run standard".into(),
         quick: true,
         wall_s: 12.5,
+        python_models: BTreeMap::new(),
     }
 }
 

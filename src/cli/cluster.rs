@@ -2,7 +2,7 @@
 //! ([`surgbench_comparisons::plan`], [`surgbench_comparisons::shard_run`],
 //! [`surgbench_comparisons::merge`]).
 
-use crate::{Failure, RunArgs, SweepArgs, find_comparison, install_interrupt};
+use super::{Failure, RunArgs, SweepArgs, find_comparison, install_interrupt};
 use clap::Args;
 use std::path::PathBuf;
 use surgbench_comparisons::batch::{self, BatchError};
