@@ -74,11 +74,11 @@ const KEYS: &[FidelityKey] = &[
         &[
             Choice::new(
                 "weight",
-                "weight-calibrated (default; calibrated on the gravity cantilever, bends ~0.2 deg per 5 mm link)",
+                "weight-calibrated (default in static scenes; calibrated on the gravity cantilever, bends ~0.2 deg per 5 mm link)",
             ),
             Choice::new(
                 "navigation",
-                "per-link bend limit Delta eps_y / r from the core's recoverable strain; nothing fitted; use with frame=link in vessels",
+                "per-link bend limit Delta eps_y / r from the core's recoverable strain; nothing fitted; default in dynamic scenes with a vessel (with frame=link)",
             ),
         ],
     ),
@@ -149,6 +149,16 @@ impl ModelFactory for ChainmailFactory {
             .any(|r| r.sections.iter().any(|s| s.rest_curvature != [0.0, 0.0]));
         if curved {
             f.extras.insert("frame".into(), "link".into());
+        }
+        // Navigation (a dynamic run in a vessel) takes the bend limit from
+        // the core's recoverable strain: with the weight-calibrated mapping
+        // the wire trips the stretch watchdog in arch-insertion (1.89 s),
+        // branch-selection (2.15 s) and vessel-mesh-insertion (0.69 s) at the
+        // defaults; with this one all three run to the end. Static scenes keep
+        // the weight mapping (with the navigation mapping flow-drift trips
+        // the watchdog at 0.01 s).
+        if scene.settle.is_none() && scene.environment.vessel.is_some() {
+            f.extras.insert("beta_mapping".into(), "navigation".into());
         }
         f
     }
