@@ -496,15 +496,17 @@ pub fn run_info(comparison: &str, opts: &BatchOptions) -> RunInfo {
         command: opts.command.clone(),
         quick: opts.quick,
         wall_s: 0.0,
-        python_models: python_models(),
+        python_models: BTreeMap::new(),
     }
 }
 
-/// The registered models written in Python, by id, with their description.
-pub fn python_models() -> BTreeMap<String, String> {
+/// The registered models written in Python among the models of `rows`, by
+/// id, with their description.
+pub fn python_models<'a>(rows: impl IntoIterator<Item = &'a ResultRow>) -> BTreeMap<String, String> {
+    let ran: std::collections::BTreeSet<&str> = rows.into_iter().map(|r| r.model.as_str()).collect();
     crate::registry::models()
         .into_iter()
-        .filter(|r| r.krate == crate::registry::PYTHON)
+        .filter(|r| r.krate == crate::registry::PYTHON && ran.contains(r.factory.id()))
         .map(|r| (r.factory.id().to_string(), r.factory.description().to_string()))
         .collect()
 }
@@ -625,6 +627,7 @@ pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultR
         bar.finish_and_clear();
         let mut info = run_info(&c.name, opts);
         info.wall_s = started.elapsed().as_secs_f64();
+        info.python_models = python_models(&rows);
         surgbench_reports::write_results_csv(&tmp.join("results.csv"), &rows)
             .map_err(|e| BatchError::Io(e.to_string()))?;
         let json = serde_json::to_string_pretty(&info).map_err(|e| BatchError::Io(e.to_string()))?;

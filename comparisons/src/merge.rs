@@ -188,7 +188,7 @@ fn merged_info(g: &Gathered, opts: &MergeOptions) -> RunInfo {
         command: opts.command.clone(),
         quick: plan.is_some_and(|p| p.quick),
         wall_s: g.records.iter().map(|r| r.wall_s).sum(),
-        python_models: batch::python_models(),
+        python_models: batch::python_models(g.rows.iter().map(|(r, _)| r)),
     }
 }
 

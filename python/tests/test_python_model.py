@@ -91,6 +91,8 @@ def test_python_models_run_in_a_comparison_and_the_report_says_python(tmp_path):
     page = (out / "index.html").read_text()
     assert "models written in Python" in page
     assert "py-mass-spring: (Python) quasi-static mass-spring rod" in page
+    # Registered in this process but not in the comparison: not listed.
+    assert "py-diverges" not in page
 
 
 def test_bad_registrations_are_usage_errors():
