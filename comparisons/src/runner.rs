@@ -293,6 +293,7 @@ fn sample(obs: &Observation, scorer: &dyn Scorer, primary: &str) -> Sample {
         hand_torque: [obs.hand_torque.x, obs.hand_torque.y, obs.hand_torque.z],
         energy: obs.energy.total(),
         error: scorer.score(obs).get(primary).copied().unwrap_or(f64::NAN),
+        reference_tip: scorer.reference_tip_at(obs.time).unwrap_or([f64::NAN; 3]),
     }
 }
 

@@ -247,6 +247,13 @@ pub trait Scorer {
     /// Error metrics of `obs` against the reference, with the run-wide
     /// metrics accumulated from the steps observed so far.
     fn score(&self, obs: &Observation) -> Metrics;
+    /// Where the reference puts the tip at time `t` (s), in m, for scenes
+    /// whose reference is a trajectory (the report plots it beside the
+    /// models' tips); `None` (the default) for the others.
+    fn reference_tip_at(&self, t: f64) -> Option<[f64; 3]> {
+        let _ = t;
+        None
+    }
 }
 
 impl<F: Fn(&Observation) -> Metrics> Scorer for F {

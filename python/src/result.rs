@@ -94,7 +94,9 @@ impl RunResult {
 
     /// The sampled time series, one `(samples,)` float64 array per column
     /// of `observables.csv` (`t` s, `tip_x` m, `hand_fx` N, `hand_tx` N m,
-    /// `energy` J, `error`: the primary error, NaN where not scored).
+    /// `energy` J, `error`: the primary error, NaN where not scored;
+    /// `ref_tip_x` m: the reference tip trajectory, NaN where the scenario's
+    /// reference is not one).
     #[getter]
     fn observables<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         // One row per sample, in the column order of `observables.csv`
@@ -105,7 +107,8 @@ impl RunResult {
             .iter()
             .map(|x| {
                 let ([tx, ty, tz], [fx, fy, fz], [mx, my, mz]) = (x.tip, x.hand_force, x.hand_torque);
-                [x.t, tx, ty, tz, fx, fy, fz, mx, my, mz, x.energy, x.error]
+                let [rx, ry, rz] = x.reference_tip;
+                [x.t, tx, ty, tz, fx, fy, fz, mx, my, mz, x.energy, x.error, rx, ry, rz]
             })
             .collect();
         let d = PyDict::new(py);

@@ -448,8 +448,22 @@ pub fn read_run_info(path: &Path) -> Result<RunInfo, ReportError> {
 }
 
 /// The columns of a per-run `observables.csv`, in file order.
-pub const SERIES_COLUMNS: [&str; 12] = [
-    "t", "tip_x", "tip_y", "tip_z", "hand_fx", "hand_fy", "hand_fz", "hand_tx", "hand_ty", "hand_tz", "energy", "error",
+pub const SERIES_COLUMNS: [&str; 15] = [
+    "t",
+    "tip_x",
+    "tip_y",
+    "tip_z",
+    "hand_fx",
+    "hand_fy",
+    "hand_fz",
+    "hand_tx",
+    "hand_ty",
+    "hand_tz",
+    "energy",
+    "error",
+    "ref_tip_x",
+    "ref_tip_y",
+    "ref_tip_z",
 ];
 
 /// One run's time series (`<run_dir>/observables.csv`), SI units.
@@ -482,6 +496,13 @@ pub struct Series {
     pub energy: Vec<f64>,
     /// The scenario's primary error at that time (unit of the metric).
     pub error: Vec<f64>,
+    /// The reference's tip position (m), where the scenario's reference is
+    /// a trajectory (empty cells, NaN, elsewhere).
+    pub ref_tip_x: Vec<f64>,
+    /// The reference's tip position (m).
+    pub ref_tip_y: Vec<f64>,
+    /// The reference's tip position (m).
+    pub ref_tip_z: Vec<f64>,
 }
 
 impl Series {
@@ -498,7 +519,10 @@ impl Series {
             8 => &mut self.hand_ty,
             9 => &mut self.hand_tz,
             10 => &mut self.energy,
-            _ => &mut self.error,
+            11 => &mut self.error,
+            12 => &mut self.ref_tip_x,
+            13 => &mut self.ref_tip_y,
+            _ => &mut self.ref_tip_z,
         }
     }
 }

@@ -233,6 +233,9 @@ pub struct Sample {
     pub energy: f64,
     /// Primary error at this time (NaN when not scored).
     pub error: f64,
+    /// The reference's tip position at this time (m; NaN where the
+    /// scenario's reference is not a trajectory).
+    pub reference_tip: [f64; 3],
 }
 
 /// One node of a run's final state (a row of `final_state.csv`).
@@ -356,9 +359,12 @@ impl RunSummary {
             let [tx, ty, tz] = x.tip;
             let [fx, fy, fz] = x.hand_force;
             let [mx, my, mz] = x.hand_torque;
+            let [rx, ry, rz] = x
+                .reference_tip
+                .map(|v| if v.is_finite() { format!("{v:e}") } else { String::new() });
             writeln!(
                 f,
-                "{:e},{tx:e},{ty:e},{tz:e},{fx:e},{fy:e},{fz:e},{mx:e},{my:e},{mz:e},{:e},{err}",
+                "{:e},{tx:e},{ty:e},{tz:e},{fx:e},{fy:e},{fz:e},{mx:e},{my:e},{mz:e},{:e},{err},{rx},{ry},{rz}",
                 x.t, x.energy
             )?;
         }

@@ -164,6 +164,11 @@ impl ModelFactory for ChainmailFactory {
     }
 
     fn check(&self, scene: &Scene) -> Result<(), Unsupported> {
+        if scene.rods().any(|r| r.initial_velocity.is_some()) {
+            return Err(Unsupported::new(
+                "the chain-mail is geometric: it has no momentum (gravity is a per-step displacement), so it cannot start with a velocity or vibrate freely",
+            ));
+        }
         surgbench_core::model::check_capabilities(self.id(), self.capabilities(), scene)?;
         if scene.rods().count() != 1 || scene.tissues().count() != 0 {
             return Err(Unsupported::new("chainmail simulates exactly one rod and no tissue"));

@@ -51,6 +51,9 @@ pub enum Capability {
     RestCurvature,
     /// Wire fed in or pulled back at the base.
     Insertion,
+    /// A rod started with a velocity field (`RodBody::initial_velocity`):
+    /// free vibration needs momentum.
+    InitialVelocity,
     /// 3D deformable solid.
     Tissue,
     /// Pressure (follower) loads on tissue boundary faces.
@@ -82,7 +85,7 @@ pub enum Capability {
 
 impl Capability {
     /// Every capability, in declaration order.
-    pub const ALL: [Capability; 19] = [
+    pub const ALL: [Capability; 20] = [
         Capability::Rod,
         Capability::Twist,
         Capability::TipForce,
@@ -90,6 +93,7 @@ impl Capability {
         Capability::VaryingProperties,
         Capability::RestCurvature,
         Capability::Insertion,
+        Capability::InitialVelocity,
         Capability::Tissue,
         Capability::PressureLoad,
         Capability::RollerConstraint,
@@ -119,6 +123,7 @@ impl Capability {
             Capability::VaryingProperties => "stiffness, radius or density varying along the rod",
             Capability::RestCurvature => "natural (pre-shaped) curvature",
             Capability::Insertion => "insertion/retraction at the base",
+            Capability::InitialVelocity => "started moving: an initial velocity field (free vibration)",
             Capability::Tissue => "3D deformable tissue",
             Capability::PressureLoad => "pressure loads on tissue faces",
             Capability::RollerConstraint => "nodes held along some axes only (rollers, symmetry planes)",
@@ -144,6 +149,7 @@ impl Capability {
             Capability::VaryingProperties => "varying-properties",
             Capability::RestCurvature => "rest-curvature",
             Capability::Insertion => "insertion",
+            Capability::InitialVelocity => "initial-velocity",
             Capability::Tissue => "tissue",
             Capability::PressureLoad => "pressure-load",
             Capability::RollerConstraint => "roller-constraint",

@@ -35,6 +35,7 @@ pub mod motion;
 pub mod needle;
 pub mod observation;
 pub mod rng;
+pub mod rod;
 pub mod scene;
 pub mod sdf;
 pub mod settings;
@@ -51,8 +52,8 @@ pub use model::{EnergyProbe, Model, ModelFactory, StepStats, resolve};
 pub use needle::NeedleTissue;
 pub use observation::{ContactObs, EnergyObs, Observation, RodObs, TissueObs};
 pub use scene::{
-    Body, ContactParams, ControlKey, ControlTimeline, DeviceCommand, Environment, LoadRamp, RodBody, RodSection, Scene,
-    Settle, SphereIndenter, TissueBody,
+    Body, ContactParams, ControlKey, ControlTimeline, DeviceCommand, Environment, LoadRamp, RodBody, RodSection,
+    RodVelocity, Scene, Settle, SphereIndenter, TissueBody,
 };
 pub use sdf::Sdf;
 pub use settings::{Choice, FidelityKey, KeyKind, Settings, Span};

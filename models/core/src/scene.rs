@@ -23,220 +23,7 @@ use crate::sdf::{Sdf, TransformedSdf};
 use crate::{Iso3, Vec3};
 use std::sync::Arc;
 
-/// One piece of a rod with uniform properties, from the previous section's
-/// end (or the base) to `until` (arclength from the base clamp, m).
-#[derive(Debug, Clone, PartialEq)]
-pub struct RodSection {
-    /// Arclength where this section ends (m), measured from the clamp.
-    pub until: f64,
-    /// Cross-section radius (m); the section is a solid circle.
-    pub radius: f64,
-    /// Young's modulus (Pa).
-    pub youngs_modulus: f64,
-    /// Poisson ratio; shear modulus `G = E / (2 (1 + nu))`.
-    pub poisson_ratio: f64,
-    /// Density (kg/m^3).
-    pub density: f64,
-    /// Natural curvature (1/m): components `(kappa_1, kappa_2)` of the rest
-    /// Darboux vector on the material directors `d1`, `d2` (Kirchhoff
-    /// convention, `t' = Omega x t`): a positive `kappa_1` turns the tangent
-    /// towards `-d2`, a positive `kappa_2` towards `+d1`. A pre-shaped J or
-    /// angled tip. Zero for a straight rod. (Bergou et al. 2008 write the
-    /// material curvature as `(Omega . d2, -Omega . d1)`; rod models map it.)
-    pub rest_curvature: [f64; 2],
-}
-
-impl RodSection {
-    /// Shear modulus `G = E / (2 (1 + nu))` (Pa).
-    pub fn shear_modulus(&self) -> f64 {
-        self.youngs_modulus / (2.0 * (1.0 + self.poisson_ratio))
-    }
-    /// Area `pi r^2` (m^2).
-    pub fn area(&self) -> f64 {
-        std::f64::consts::PI * self.radius * self.radius
-    }
-    /// Second moment of area of a solid circle `pi r^4 / 4` (m^4).
-    pub fn second_moment(&self) -> f64 {
-        std::f64::consts::PI * self.radius.powi(4) / 4.0
-    }
-    /// Polar moment `pi r^4 / 2` (m^4).
-    pub fn polar_moment(&self) -> f64 {
-        2.0 * self.second_moment()
-    }
-}
-
-/// A rod (guidewire, catheter, needle) clamped at its base.
-#[derive(Debug, Clone, PartialEq)]
-pub struct RodBody {
-    /// Free length at the start of the run (m).
-    pub length: f64,
-    /// Sections from base to tip; the last one's `until` equals `length`.
-    pub sections: Vec<RodSection>,
-    /// Base clamp pose: position of the clamp; the rod leaves along its local
-    /// +x axis, the material frame starts as (local y, local z).
-    pub base: Iso3,
-    /// Dead force on the tip node (N, world frame).
-    pub tip_force: Vec3,
-    /// Dead torque on the tip (N m, world frame).
-    pub tip_torque: Vec3,
-    /// How the tip loads grow over time: `None` applies them in full from
-    /// `t = 0`; a ramp scales both by its value at `t` (so a scene can thread
-    /// a wire first and load it after, or raise a pull force slowly).
-    pub tip_load_ramp: Option<LoadRamp>,
-}
-
-/// Piecewise-linear scale factor over time (dimensionless, `[0, 1]`); before
-/// the first key and after the last the nearest key's value holds.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct LoadRamp {
-    /// `(t, scale)` pairs: time (s), strictly increasing, and the scale there.
-    pub keys: Vec<(f64, f64)>,
-}
-
-impl LoadRamp {
-    /// Zero until `t0`, rising linearly to 1 at `t1`, 1 after (s).
-    pub fn linear(t0: f64, t1: f64) -> Self {
-        Self {
-            keys: vec![(t0, 0.0), (t1, 1.0)],
-        }
-    }
-
-    /// The scale at time `t` (s).
-    pub fn scale_at(&self, t: f64) -> f64 {
-        let k = &self.keys;
-        match k.len() {
-            0 => 1.0,
-            _ if t <= k[0].0 => k[0].1,
-            _ if t >= k[k.len() - 1].0 => k[k.len() - 1].1,
-            _ => {
-                let i = k.partition_point(|key| key.0 <= t) - 1;
-                let (a, b) = (k[i], k[i + 1]);
-                a.1 + (t - a.0) / (b.0 - a.0) * (b.1 - a.1)
-            }
-        }
-    }
-
-    /// Rate of change of the scale at `t` (1/s), zero on the flat parts and
-    /// the right-hand slope at a key.
-    pub fn rate_at(&self, t: f64) -> f64 {
-        let k = &self.keys;
-        if k.len() < 2 || t < k[0].0 || t >= k[k.len() - 1].0 {
-            return 0.0;
-        }
-        let i = k.partition_point(|key| key.0 <= t) - 1;
-        (k[i + 1].1 - k[i].1) / (k[i + 1].0 - k[i].0)
-    }
-
-    /// Check keys: at least one, finite, times strictly increasing, scales in `[0, 1]`.
-    pub fn validate(&self) -> Result<(), String> {
-        if self.keys.is_empty() {
-            return Err("tip load ramp has no keys".into());
-        }
-        for (i, &(t, s)) in self.keys.iter().enumerate() {
-            if !(t.is_finite() && (0.0..=1.0).contains(&s)) {
-                return Err(format!(
-                    "tip load ramp key {i} ({t} s, {s}): time must be finite, scale in [0, 1]"
-                ));
-            }
-            if i > 0 && !(t > self.keys[i - 1].0) {
-                return Err(format!(
-                    "tip load ramp key {i} at {t} s is not after {} s",
-                    self.keys[i - 1].0
-                ));
-            }
-        }
-        Ok(())
-    }
-}
-
-impl RodBody {
-    /// A straight rod with uniform properties, clamped at the origin along +x.
-    pub fn uniform(length: f64, radius: f64, youngs_modulus: f64, poisson_ratio: f64, density: f64) -> Self {
-        Self {
-            length,
-            sections: vec![RodSection {
-                until: length,
-                radius,
-                youngs_modulus,
-                poisson_ratio,
-                density,
-                rest_curvature: [0.0, 0.0],
-            }],
-            base: Iso3::identity(),
-            tip_force: Vec3::zeros(),
-            tip_torque: Vec3::zeros(),
-            tip_load_ramp: None,
-        }
-    }
-
-    /// Scale of the tip loads at time `t` (s): 1 without a ramp.
-    pub fn tip_load_scale(&self, t: f64) -> f64 {
-        self.tip_load_ramp.as_ref().map_or(1.0, |r| r.scale_at(t))
-    }
-
-    /// Dead tip force at time `t` (N, world frame).
-    pub fn tip_force_at(&self, t: f64) -> Vec3 {
-        self.tip_load_scale(t) * self.tip_force
-    }
-
-    /// Dead tip torque at time `t` (N m, world frame).
-    pub fn tip_torque_at(&self, t: f64) -> Vec3 {
-        self.tip_load_scale(t) * self.tip_torque
-    }
-
-    /// The section at arclength `s` (m from the clamp); past the tip, the last.
-    pub fn section_at(&self, s: f64) -> &RodSection {
-        self.sections
-            .iter()
-            .find(|sec| s <= sec.until)
-            .unwrap_or_else(|| self.sections.last().expect("validated rod has a section"))
-    }
-
-    /// Check that the rod is physically meaningful.
-    pub fn validate(&self) -> Result<(), String> {
-        if !(self.length > 0.0 && self.length.is_finite()) {
-            return Err(format!("rod length must be > 0 m, got {}", self.length));
-        }
-        if self.sections.is_empty() {
-            return Err("rod has no sections".into());
-        }
-        let mut prev = 0.0;
-        for (i, s) in self.sections.iter().enumerate() {
-            if !(s.until > prev) {
-                return Err(format!("rod section {i} ends at {} m, not after {prev} m", s.until));
-            }
-            prev = s.until;
-            if !(s.radius > 0.0 && s.radius.is_finite()) {
-                return Err(format!("radius must be > 0 m, got {}", s.radius));
-            }
-            if !(s.youngs_modulus > 0.0 && s.youngs_modulus.is_finite()) {
-                return Err(format!("youngs_modulus must be > 0 Pa, got {}", s.youngs_modulus));
-            }
-            if !(s.poisson_ratio > -1.0 && s.poisson_ratio < 0.5) {
-                return Err(format!("poisson_ratio must be in (-1, 0.5), got {}", s.poisson_ratio));
-            }
-            if !(s.density > 0.0 && s.density.is_finite()) {
-                return Err(format!("density must be > 0 kg/m^3, got {}", s.density));
-            }
-            if !s.rest_curvature.iter().all(|k| k.is_finite()) {
-                return Err("rest_curvature must be finite".into());
-            }
-        }
-        if (prev - self.length).abs() > 1e-12 * self.length {
-            return Err(format!(
-                "last rod section ends at {prev} m but the rod is {} m long",
-                self.length
-            ));
-        }
-        if !(self.tip_force.iter().all(|x| x.is_finite()) && self.tip_torque.iter().all(|x| x.is_finite())) {
-            return Err("tip loads must be finite".into());
-        }
-        if let Some(r) = &self.tip_load_ramp {
-            r.validate()?;
-        }
-        Ok(())
-    }
-}
+pub use crate::rod::{LoadRamp, RodBody, RodSection, RodVelocity, VelocitySample};
 
 /// A deformable solid (tissue, vessel wall, gel phantom).
 #[derive(Debug, Clone, PartialEq)]
@@ -611,6 +398,9 @@ impl Scene {
                     if self.control.inserts() {
                         c.push(Capability::Insertion);
                     }
+                    if r.initial_velocity.is_some() {
+                        c.push(Capability::InitialVelocity);
+                    }
                 }
                 Body::Tissue(t) => {
                     c.push(Capability::Tissue);
@@ -734,6 +524,12 @@ impl Scene {
                     r.base = iso * r.base;
                     r.tip_force = rot * r.tip_force;
                     r.tip_torque = rot * r.tip_torque;
+                    if let Some(v) = &mut r.initial_velocity {
+                        for k in &mut v.samples {
+                            k.velocity = rot * k.velocity;
+                            k.angular_velocity = rot * k.angular_velocity;
+                        }
+                    }
                 }
                 Body::Tissue(t) => {
                     for p in &mut t.mesh.nodes {
@@ -771,50 +567,5 @@ impl Scene {
             s.environment.vessel_motion = Some(Arc::new(TransformedMotion::new(m.clone(), *iso)));
         }
         s
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The ramp interpolates linearly, holds its end values, and its rate is
-    /// the slope of the segment the time falls in (exact arithmetic on these
-    /// dyadic values, so equality is exact).
-    #[test]
-    fn load_ramp_interpolates_and_holds() {
-        let r = LoadRamp {
-            keys: vec![(0.5, 0.0), (1.0, 1.0), (2.0, 0.5)],
-        };
-        assert_eq!(r.scale_at(0.0), 0.0);
-        assert_eq!(r.scale_at(0.75), 0.5);
-        assert_eq!(r.scale_at(1.5), 0.75);
-        assert_eq!(r.scale_at(3.0), 0.5);
-        assert_eq!(r.rate_at(0.25), 0.0);
-        assert_eq!(r.rate_at(0.75), 2.0);
-        assert_eq!(r.rate_at(1.5), -0.5);
-        assert_eq!(r.rate_at(2.5), 0.0);
-        let mut rod = RodBody::uniform(0.1, 1e-3, 1e9, 0.3, 1000.0);
-        rod.tip_force = Vec3::new(0.0, 2.0, 0.0);
-        assert_eq!(rod.tip_force_at(0.0), rod.tip_force, "no ramp: full load");
-        rod.tip_load_ramp = Some(r);
-        assert_eq!(rod.tip_force_at(0.75), Vec3::new(0.0, 1.0, 0.0));
-        assert!(rod.validate().is_ok());
-    }
-
-    /// Bad ramps are refused with a message naming the key.
-    #[test]
-    fn bad_load_ramps_are_refused() {
-        let mut rod = RodBody::uniform(0.1, 1e-3, 1e9, 0.3, 1000.0);
-        for (keys, needle) in [
-            (vec![], "no keys"),
-            (vec![(0.0, 0.0), (0.0, 1.0)], "not after"),
-            (vec![(0.0, 1.5)], "scale in [0, 1]"),
-            (vec![(f64::NAN, 0.5)], "must be finite"),
-        ] {
-            rod.tip_load_ramp = Some(LoadRamp { keys });
-            let err = rod.validate().unwrap_err();
-            assert!(err.contains(needle), "{err:?} should mention {needle:?}");
-        }
     }
 }

@@ -46,6 +46,7 @@ const ROD_CAPS: &[Capability] = &[
     Capability::VaryingProperties,
     Capability::RestCurvature,
     Capability::Insertion,
+    Capability::InitialVelocity,
     Capability::VesselContact,
     Capability::Friction,
     Capability::Flow,

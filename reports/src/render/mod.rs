@@ -15,18 +15,20 @@ mod error_time;
 mod pareto;
 mod stability;
 mod tables;
+mod tip_time;
 
 use convergence::convergence_figure;
 use error_time::error_time_figure;
 use pareto::pareto_figure;
 use stability::stability_figure;
 use tables::page;
+use tip_time::tip_time_figure;
 
 /// Size of single-panel plots (px): 770 px of chart + 330 px of legend.
 const PLOT_SIZE: (u32, u32) = (1100, 700);
 
 /// Renders the report for `rows` into `dir` (which normally already holds
-/// `results.csv`): `plots/<stem>-{pareto,convergence,error-time,stability}.{svg,png}`,
+/// `results.csv`): `plots/<stem>-{pareto,convergence,error-time,tip-time,stability}.{svg,png}` (tip-time where the runs recorded a reference trajectory),
 /// `report.md` and `index.html`. Returns every file written, plots first.
 ///
 /// `plots/` is owned by the renderer: stale `.svg`/`.png` files in it are
@@ -49,6 +51,7 @@ pub fn render(dir: &Path, rows: &[ResultRow], info: &RunInfo) -> Result<Vec<Path
             ("pareto", pareto_figure(g, &styles, &mut sec)),
             ("convergence", convergence_figure(g, &styles, &mut sec)),
             ("error-time", error_time_figure(dir, g, &styles, &mut sec)),
+            ("tip-time", tip_time_figure(dir, g, &styles, &mut sec)),
             ("stability", stability_figure(g, &styles, &mut sec)),
         ];
         for (kind, fig) in figs {

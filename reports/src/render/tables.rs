@@ -245,6 +245,45 @@ fn run_table(info: &RunInfo) -> Block {
 }
 
 /// One scenario's section: counts, table, other metrics, orders, plots, notes.
+/// The metrics of a free-vibration run, as the dynamics scenarios name
+/// them, with their column headers: the closed forms of a scheme's period
+/// and damping are read against these (README, `run dynamics`).
+const VIBRATION_METRICS: [(&str, &str); 4] = [
+    ("period_error_rel", "period error [1]"),
+    ("damping_per_period", "damping per period [1]"),
+    ("phase_error_rad", "phase error at the end [rad]"),
+    ("amplitude_loss_rel", "amplitude loss [1]"),
+];
+
+/// Period, damping and phase of every ok run, when the group's runs report
+/// them (free-vibration scenes); `None` for the others.
+fn vibration_table(g: &Group) -> Option<Block> {
+    let ok: Vec<&ResultRow> = g
+        .rows
+        .iter()
+        .copied()
+        .filter(|r| r.status == Status::Ok && VIBRATION_METRICS.iter().any(|(m, _)| r.metrics.contains_key(*m)))
+        .collect();
+    if ok.is_empty() {
+        return None;
+    }
+    let mut header = vec!["model".to_string(), "fidelity".to_string()];
+    header.extend(VIBRATION_METRICS.iter().map(|(_, h)| h.to_string()));
+    let rows = ok
+        .iter()
+        .map(|r| {
+            let mut row = vec![Cell::plain(&r.model), Cell::plain(&r.fidelity)];
+            row.extend(
+                VIBRATION_METRICS
+                    .iter()
+                    .map(|(m, _)| Cell::plain(num(r.metrics.get(*m).copied()))),
+            );
+            row
+        })
+        .collect();
+    Some(Block::Table { header, rows })
+}
+
 fn scenario_section(g: &Group, sec: &Section, st: &Styles) -> Vec<Block> {
     let mut b = Vec::new();
     b.push(Block::Heading(2, format!("Scenario: {}", g.title)));
@@ -261,6 +300,10 @@ fn scenario_section(g: &Group, sec: &Section, st: &Styles) -> Vec<Block> {
         b.push(Block::List(g.metric_notes.clone()));
     }
     b.push(scenario_table(g, st));
+    if let Some(t) = vibration_table(g) {
+        b.push(Block::Heading(3, "Period and damping (ok runs)".into()));
+        b.push(t);
+    }
     let others: BTreeSet<&str> = g
         .rows
         .iter()

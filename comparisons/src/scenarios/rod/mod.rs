@@ -1,5 +1,6 @@
-//! Rod statics: cantilever under gravity, cantilever under a tip load,
-//! torque transfer. Shared conventions: base clamped at the origin, rod along
+//! Rod scenes without a vessel: the statics (cantilever under gravity,
+//! cantilever under a tip load, torque transfer) and the free vibration of a
+//! cantilever. Shared conventions: base clamped at the origin, rod along
 //! +x, gravity and transverse loads along -z; SI units.
 //!
 //! Default material: a nitinol-like wire (E = 50 GPa, nu = 0.3,
@@ -8,10 +9,12 @@
 
 mod cantilever_gravity;
 mod cantilever_tip_load;
+mod cantilever_vibration;
 mod torque_transfer;
 
 pub use cantilever_gravity::{CANTILEVER_GRAVITY, GravityParams};
 pub use cantilever_tip_load::{CANTILEVER_TIP_LOAD, TipLoadParams};
+pub use cantilever_vibration::{CANTILEVER_VIBRATION, TipTrack, VibrationParams};
 pub use torque_transfer::{TORQUE_TRANSFER, TorqueParams};
 
 use crate::references::elastica::Elastica;
@@ -21,7 +24,12 @@ use surgbench_core::{Observation, RodBody, RodObs, Scene, Settle, Vec3};
 
 /// Every rod scenario, in report order.
 pub fn all() -> Vec<&'static dyn Scenario> {
-    vec![&CANTILEVER_GRAVITY, &CANTILEVER_TIP_LOAD, &TORQUE_TRANSFER]
+    vec![
+        &CANTILEVER_GRAVITY,
+        &CANTILEVER_TIP_LOAD,
+        &TORQUE_TRANSFER,
+        &CANTILEVER_VIBRATION,
+    ]
 }
 
 /// The sweep every rod statics scene runs: 10 to 80 segments.

@@ -173,6 +173,7 @@ impl Wire {
             tip_force: Vec3::zeros(),
             tip_torque: Vec3::zeros(),
             tip_load_ramp: None,
+            initial_velocity: None,
         })
     }
     /// [`Wire::rod`] with the last `j_len` m of the soft tip pre-curved to

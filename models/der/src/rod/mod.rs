@@ -131,7 +131,9 @@ use crate::energy::{self, VertexParams, VertexTerms};
 use std::sync::Arc;
 use surgbench_core::contact::LaggedFriction;
 use surgbench_core::flow::FlowField;
-use surgbench_core::{ContactObs, ContactParams, DeviceCommand, Environment, Iso3, LoadRamp, Mat3, Sdf, Vec3};
+use surgbench_core::{
+    ContactObs, ContactParams, DeviceCommand, Environment, Iso3, LoadRamp, Mat3, RodVelocity, Sdf, Vec3,
+};
 
 mod build;
 mod coupled;
@@ -448,6 +450,19 @@ impl DerRod {
     /// Velocity of node `k` (m/s).
     pub fn node_velocity(&self, k: usize) -> Vec3 {
         Vec3::new(self.qdot[4 * k], self.qdot[4 * k + 1], self.qdot[4 * k + 2])
+    }
+
+    /// Start the rod moving with `field` (`RodBody::initial_velocity`): every
+    /// free node takes the field's velocity at its arclength; the clamped
+    /// nodes and the twist rates stay at rest. The field's angular velocity
+    /// is not read: DER's material frames follow the centreline, so a
+    /// bending mode's section rotation is implied by the node velocities.
+    pub fn set_initial_velocity(&mut self, field: &RodVelocity) {
+        for k in 2..self.n {
+            let (v, _) = field.at(self.arclength[k]);
+            self.qdot[4 * k..4 * k + 3].copy_from_slice(v.as_slice());
+        }
+        self.accel_valid = false;
     }
 
     /// Twist angle of edge `j` relative to its reference frame (rad).

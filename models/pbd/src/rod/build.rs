@@ -2,7 +2,7 @@
 
 use super::*;
 use surgbench_core::band::BandMatrix;
-use surgbench_core::{BuildError, DeviceCommand, Fidelity, RodBody, Scene, Settings, Vec3};
+use surgbench_core::{BuildError, DeviceCommand, Fidelity, RodBody, RodVelocity, Scene, Settings, Vec3};
 
 impl PbdRod {
     /// Build the rod of `scene` (exactly one rod) at `fidelity`, resolved
@@ -19,7 +19,7 @@ impl PbdRod {
         let g = RestRod::new(rod, n);
         let l = g.l;
         let c = scene.environment.contact;
-        Ok(Self {
+        let mut rod_model = Self {
             set,
             n,
             l,
@@ -86,7 +86,25 @@ impl PbdRod {
             dsol: Vec::new(),
             drot: Vec::new(),
             drel: Vec::new(),
-        })
+        };
+        if let Some(field) = &rod.initial_velocity {
+            rod_model.set_initial_velocity(field);
+        }
+        Ok(rod_model)
+    }
+
+    /// Start the rod moving with `field` (`RodBody::initial_velocity`): the
+    /// free particles take its velocity at their arclength, each segment its
+    /// angular velocity at the segment's midpoint (the section rotation of a
+    /// bending mode, so that the stretch-shear constraints start satisfied
+    /// to first order); the clamped particle stays at rest.
+    pub fn set_initial_velocity(&mut self, field: &RodVelocity) {
+        for i in 1..=self.n {
+            self.v[i] = field.at(self.arclength[i]).0;
+        }
+        for j in 0..self.n {
+            self.omega[j] = field.at((j as f64 + 0.5) * self.l).1;
+        }
     }
 }
 
