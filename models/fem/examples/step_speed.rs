@@ -57,14 +57,9 @@ fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len().max(1) as f64
 }
 
-fn main() {
-    let args: Vec<String> = std::env::args().collect();
-    let threads: usize = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(2);
-    let held: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(40);
-    // Third argument: one configuration name (exact), or `all`.
-    let only: Option<&str> = args.get(3).map(|s| s.as_str());
-    let ramp = 20;
-    let b = bench_block();
+/// The reference configuration (full Cholesky refactorization every step)
+/// and every linear-solver trick measured against it, by name.
+fn configs(threads: usize) -> (DynParams, Vec<(&'static str, DynParams)>) {
     let base = DynParams {
         rayleigh_mass: 5.0,
         threads,
@@ -131,7 +126,18 @@ fn main() {
         ("cg 1e-8, lazy 0", cgp(1e-8, 0.0)),
         ("cg 1e-6, lazy 0.05", cgp(1e-6, 0.05)),
     ];
-    let ramp: usize = args.get(4).and_then(|s| s.parse().ok()).unwrap_or(ramp);
+    (base, configs)
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let threads: usize = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(2);
+    let held: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(40);
+    // Third argument: one configuration name (exact), or `all`.
+    let only: Option<&str> = args.get(3).map(|s| s.as_str());
+    let b = bench_block();
+    let (base, configs) = configs(threads);
+    let ramp: usize = args.get(4).and_then(|s| s.parse().ok()).unwrap_or(20);
     // `skip` as the fifth argument: no reference run (profiling one configuration).
     let skip_ref = args.get(5).is_some_and(|s| s == "skip");
     let reference = if skip_ref {

@@ -109,22 +109,14 @@ fn omission_notes(omitted: &Omitted, sec: &mut Section) {
     }
 }
 
-/// Speed vs error: every ok run a point, each model's Pareto front a line.
-pub(super) fn pareto_figure(g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figure, String)> {
-    if g.metric.is_empty() {
-        sec.notes
-            .push("No speed/error plot: no row names a primary error metric.".into());
-        return None;
-    }
-    let cost = Cost::of_group(g);
+/// One series (points and Pareto front) and legend entry per model and
+/// machine: timings of two machines never share a front.
+fn model_series(g: &Group, st: &Styles, cost: &Cost, omitted: &mut Omitted) -> (Vec<SeriesSpec>, Vec<LegendEntry>) {
     let mut series = Vec::new();
     let mut legend = Vec::new();
-    let mut omitted = Omitted::default();
-    // One series (and front) per model and machine: timings of two
-    // machines never share a front.
     for (variant, host) in st.machine_groups().into_iter().enumerate() {
         for model in &g.models {
-            let pts = model_points(g, model, &|r| st.on_machine(r, host), &cost, &mut omitted);
+            let pts = model_points(g, model, &|r| st.on_machine(r, host), cost, omitted);
             if pts.is_empty() {
                 continue;
             }
@@ -147,6 +139,19 @@ pub(super) fn pareto_figure(g: &Group, st: &Styles, sec: &mut Section) -> Option
             });
         }
     }
+    (series, legend)
+}
+
+/// Speed vs error: every ok run a point, each model's Pareto front a line.
+pub(super) fn pareto_figure(g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figure, String)> {
+    if g.metric.is_empty() {
+        sec.notes
+            .push("No speed/error plot: no row names a primary error metric.".into());
+        return None;
+    }
+    let cost = Cost::of_group(g);
+    let mut omitted = Omitted::default();
+    let (series, mut legend) = model_series(g, st, &cost, &mut omitted);
     omission_notes(&omitted, sec);
     if series.is_empty() {
         sec.notes.push(format!(

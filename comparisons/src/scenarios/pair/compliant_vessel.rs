@@ -173,9 +173,11 @@ pub const CATHETER_COMPLIANT_VESSEL: Declared<CompliantParams> = Declared {
     build,
 };
 
-fn build(p: &CompliantParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
+/// The geometry checks of `p` at mesh `level`: the vessel's length (m) and
+/// how far the hand may feed the catheter, or a usage error naming the
+/// parameter that does not fit.
+fn check_geometry(p: &CompliantParams, level: usize) -> Result<(f64, FeedLimit), UsageError> {
     let id = CATHETER_COMPLIANT_VESSEL.info.id;
-    let level = inputs.fidelity.mesh_level.unwrap_or(0);
     if level > MAX_LEVEL {
         return Err(UsageError(format!(
             "scenario `{id}`: mesh_level {level} is past the finest level {MAX_LEVEL}"
@@ -217,12 +219,13 @@ fn build(p: &CompliantParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError
             length - CLAMP_S
         )));
     }
-    let tube = CenterlineBuilder::new(Vec3::zeros(), Vec3::x())
-        .line(STRAIGHT_IN)
-        .arc(p.bend_radius, PI / 2.0, Vec3::y())
-        .line(STRAIGHT_OUT)
-        .build_constant(r)
-        .map_err(|e| UsageError(format!("{id}: {e}")))?;
+    Ok((length, feed_limit))
+}
+
+/// The vessel wall around `tube` (m) at mesh `level`: a swept tet mesh, its
+/// outer surface held, its inner surface the contact surface.
+fn wall_tissue(p: &CompliantParams, tube: &SweptTube, length: f64, level: usize) -> TissueBody {
+    let (r, t) = (p.lumen_radius, p.wall_thickness);
     let k = 1usize << level;
     let n_s = ((length * CELLS_PER_M).ceil() as usize) * k;
     let wall_mesh = mesh::swept_wall(|s| tube.frame_at(s), length, r, r + t, N_THETA * k, N_R * k, n_s);
@@ -240,6 +243,21 @@ fn build(p: &CompliantParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError
         .into_iter()
         .filter(|f| f.iter().all(|i| i % nr_nodes == 0))
         .collect();
+    tissue
+}
+
+fn build(p: &CompliantParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
+    let id = CATHETER_COMPLIANT_VESSEL.info.id;
+    let level = inputs.fidelity.mesh_level.unwrap_or(0);
+    let (length, feed_limit) = check_geometry(p, level)?;
+    let r = p.lumen_radius;
+    let tube = CenterlineBuilder::new(Vec3::zeros(), Vec3::x())
+        .line(STRAIGHT_IN)
+        .arc(p.bend_radius, PI / 2.0, Vec3::y())
+        .line(STRAIGHT_OUT)
+        .build_constant(r)
+        .map_err(|e| UsageError(format!("{id}: {e}")))?;
+    let tissue = wall_tissue(p, &tube, length, level);
     let vertices = tissue.surface_vertices();
     let rest: Arc<dyn Sdf> = Arc::new(tube.clone());
     let wall = wall_samples(&tissue, rest.clone()).map_err(|e| UsageError(format!("{id}: {e}")))?;
