@@ -160,6 +160,7 @@ const TISSUE_CAPS: &[Capability] = &[
     Capability::HapticForce,
     Capability::RollerConstraint,
     Capability::TissueContact,
+    Capability::SurfaceForces,
 ];
 
 impl ModelFactory for PbdTissueFactory {

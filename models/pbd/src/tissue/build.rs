@@ -86,6 +86,8 @@ impl PbdTissue {
             rollers,
             sphere,
             sphere_force: Vec3::zeros(),
+            surface: body.surface_vertices(),
+            external: vec![Vec3::zeros(); body.mesh.nodes.len()],
         };
         s.update_active();
         Ok(s)
@@ -95,6 +97,12 @@ impl PbdTissue {
 /// Reject a tissue body this model cannot build: sphere contact with local
 /// activation, no tets, out-of-range boundary nodes, non-finite drives.
 fn check_body(body: &TissueBody, set: &TissueSettings) -> Result<(), BuildError> {
+    if !body.contact_surface.is_empty() && set.hash_box > 0.0 {
+        return Err(Unsupported::new(
+            "pbd-tissue: local activation (hash_box > 0) follows the driven nodes, not a coupled instrument; surface forces need hash_box = 0",
+        )
+        .into());
+    }
     if body.indenter.is_some() && set.hash_box > 0.0 {
         return Err(Unsupported::new(
             "pbd-tissue: local activation (hash_box > 0) follows the driven nodes, not the sphere; sphere contact needs hash_box = 0",

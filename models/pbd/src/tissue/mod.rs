@@ -429,6 +429,11 @@ pub struct PbdTissue {
     sphere: Option<SphereContact>,
     /// Force the body exerts on the sphere in the last substep (N).
     sphere_force: Vec3,
+    /// The scene's contact-surface nodes (`TissueBody::surface_vertices`).
+    surface: Vec<usize>,
+    /// Dead force on each node from a coupled instrument (N, world frame;
+    /// zero off the contact surface), set by `Model::set_surface_forces`.
+    external: Vec<Vec3>,
 }
 
 /// The hard unilateral contact of the boundary particles with a rigid
@@ -513,6 +518,11 @@ impl PbdTissue {
     /// Resolved settings.
     pub fn settings(&self) -> TissueSettings {
         self.set
+    }
+
+    /// Lumped node masses (kg): a quarter of each adjacent tet's.
+    pub fn masses(&self) -> &[f64] {
+        &self.mass
     }
 
     /// Node positions (m).
@@ -602,7 +612,7 @@ impl PbdTissue {
         let mut e = EnergyObs::default();
         for i in 0..self.x.len() {
             e.kinetic += 0.5 * self.mass[i] * self.v[i].norm_squared();
-            e.external -= self.mass[i] * self.gravity.dot(&self.x[i]);
+            e.external -= (self.mass[i] * self.gravity + self.external[i]).dot(&self.x[i]);
         }
         for (k, ed) in self.edges.iter().enumerate() {
             let c = (self.x[ed[1] as usize] - self.x[ed[0] as usize]).norm() - self.edge_rest[k];
@@ -667,6 +677,48 @@ impl Model for PbdTissue {
 
     fn dt(&self) -> f64 {
         self.set.dt
+    }
+
+    fn surface_positions(&self) -> Option<Vec<Vec3>> {
+        (!self.surface.is_empty()).then(|| self.surface.iter().map(|&i| self.x[i]).collect())
+    }
+
+    /// Dead forces on the contact-surface nodes: each free node's predicted
+    /// velocity gains `w f h` per substep (Macklin et al. 2016, Alg. 1: the
+    /// external force in the prediction); a fixed or driven node's are
+    /// carried by its support.
+    fn set_surface_forces(&mut self, forces: &[Vec3]) -> Result<(), SimError> {
+        if forces.len() != self.surface.len() || !forces.iter().all(|f| f.iter().all(|c| c.is_finite())) {
+            return Err(SimError::SolverFailed {
+                t: self.time,
+                reason: format!(
+                    "pbd-tissue: {} surface forces (finite) expected, got {}",
+                    self.surface.len(),
+                    forces.len()
+                ),
+            });
+        }
+        for (&i, f) in self.surface.iter().zip(forces) {
+            self.external[i] = *f;
+        }
+        Ok(())
+    }
+
+    /// The whole model (positions, velocities, multipliers, the active set
+    /// and the surface forces): a coupling retrying a step restores it.
+    fn save_state(&self) -> Option<Box<dyn std::any::Any + Send>> {
+        Some(Box::new(self.clone()))
+    }
+
+    fn restore_state(&mut self, state: &(dyn std::any::Any + Send)) -> Result<(), SimError> {
+        let saved = state
+            .downcast_ref::<PbdTissue>()
+            .ok_or_else(|| SimError::SolverFailed {
+                t: self.time,
+                reason: "pbd-tissue: not a saved pbd-tissue state".into(),
+            })?;
+        self.clone_from(saved);
+        Ok(())
     }
 
     /// `static_hand_force_n`: the hand force (magnitude) at the converged

@@ -91,7 +91,7 @@ impl PbdTissue {
         let damp = 1.0 / (1.0 + self.set.damping * h);
         for &i in &self.active.nodes {
             let i = i as usize;
-            self.v[i] = self.v[i] * damp + self.gravity * h;
+            self.v[i] = self.v[i] * damp + (self.gravity + self.w[i] * self.external[i]) * h;
             self.x_prev[i] = self.x[i];
             self.x[i] += self.v[i] * h;
         }
