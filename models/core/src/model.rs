@@ -93,6 +93,23 @@ pub trait Model: Send {
     }
 }
 
+/// [`Model::restore_state`] for a model that saves a whole copy of itself
+/// (`save_state` = `Some(Box::new(self.clone()))`): `model` becomes the
+/// saved copy; a state of another type is an error naming `what`.
+pub fn restore_clone<T: Clone + 'static>(
+    model: &mut T,
+    state: &(dyn Any + Send),
+    what: &str,
+    t: f64,
+) -> Result<(), SimError> {
+    let saved = state.downcast_ref::<T>().ok_or_else(|| SimError::SolverFailed {
+        t,
+        reason: format!("{what}: not a saved {what} state"),
+    })?;
+    model.clone_from(saved);
+    Ok(())
+}
+
 /// The error of a coupling hook a model does not implement.
 fn unsupported_hook(what: &str) -> SimError {
     SimError::SolverFailed {

@@ -68,6 +68,7 @@ const CAPS: &[Capability] = &[
     Capability::RollerConstraint,
     Capability::HapticForce,
     Capability::TissueContact,
+    Capability::SurfaceForces,
 ];
 
 impl ModelFactory for MeshlessFactory {

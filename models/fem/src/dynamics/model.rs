@@ -3,6 +3,7 @@
 //! the [`EnergyProbe`] the conformance suite checks forces against.
 
 use super::*;
+use surgbench_core::coupling::store_surface_forces;
 
 impl Model for FemModel {
     fn step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
@@ -43,17 +44,7 @@ impl Model for FemModel {
     /// Dead forces on the contact-surface nodes (a free node's residual
     /// gains them; a constrained node's are carried by its support).
     fn set_surface_forces(&mut self, forces: &[Vec3]) -> Result<(), SimError> {
-        if forces.len() != self.surface.len() || !forces.iter().all(|f| f.iter().all(|c| c.is_finite())) {
-            return Err(self.fail(format!(
-                "{} surface forces (finite) expected, got {}",
-                self.surface.len(),
-                forces.len()
-            )));
-        }
-        for (&i, f) in self.surface.iter().zip(forces) {
-            self.external[i] = *f;
-        }
-        Ok(())
+        store_surface_forces(&self.surface, forces, &mut self.external).map_err(|e| self.fail(e))
     }
 
     /// Time, positions, velocities, accelerations and what the last step

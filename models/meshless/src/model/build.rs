@@ -57,6 +57,18 @@ impl MeshlessTissue {
         let targets: Vec<Vec3> = surface_nodes.iter().map(|&i| mesh.nodes[i]).collect();
         let mls = MlsMap::new(&mesh.nodes, &targets, &mls_radius)
             .map_err(|e| refusal(fidelity, "mls_factor", e.to_string()))?;
+        // Every contact-surface vertex is a boundary vertex: its particle.
+        let contact_particles = body
+            .surface_vertices()
+            .iter()
+            .map(|i| surface_nodes.binary_search(i))
+            .collect::<Result<Vec<usize>, usize>>()
+            .map_err(|_| {
+                BuildError::bad(
+                    "contact_surface",
+                    "a contact-surface vertex is not on the mesh boundary",
+                )
+            })?;
         let axis_free = free_axes(body)?;
         let mass: Vec<f64> = volume.iter().map(|v| v * m.density).collect();
         let (lo, hi) = surgbench_core::mesh::bounds(mesh);
@@ -97,6 +109,8 @@ impl MeshlessTissue {
             pforces: vec![Vec3::zeros(); nn],
             contact,
             el,
+            contact_particles,
+            external: vec![Vec3::zeros(); nn],
         })
     }
 }

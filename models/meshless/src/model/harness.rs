@@ -3,6 +3,7 @@
 
 use super::*;
 use crate::elastic::StateCache;
+use surgbench_core::coupling::store_surface_forces;
 use surgbench_core::{DeviceCommand, EnergyProbe, Model, Observation, SimError, StepStats, TissueObs, Vec3};
 
 impl Model for MeshlessTissue {
@@ -86,6 +87,45 @@ impl Model for MeshlessTissue {
         Some(self)
     }
 
+    /// The contact surface where the seed puts it: the MLS map of the nodes
+    /// at the surface particles (Sec. "surface update" of the meshless seed).
+    fn surface_positions(&self) -> Option<Vec<Vec3>> {
+        (!self.contact_particles.is_empty()).then(|| {
+            self.contact_particles
+                .iter()
+                .map(|&k| self.mls.map_one(k, &self.x))
+                .collect()
+        })
+    }
+
+    /// Forces on the MLS surface particles, spread over the nodes by the
+    /// transpose of the map (`f_j = sum_k phi_j(p_k) f_k`: the nodal forces
+    /// that do the same virtual work), replacing the previous ones.
+    fn set_surface_forces(&mut self, forces: &[Vec3]) -> Result<(), SimError> {
+        let mut particle = vec![Vec3::zeros(); self.mls.len()];
+        store_surface_forces(&self.contact_particles, forces, &mut particle).map_err(|e| SimError::SolverFailed {
+            t: self.time,
+            reason: format!("meshless: {e}"),
+        })?;
+        self.external.iter_mut().for_each(|f| *f = Vec3::zeros());
+        for &k in &self.contact_particles {
+            for (j, phi) in self.mls.shape_functions(k) {
+                self.external[j] += particle[k] * phi;
+            }
+        }
+        Ok(())
+    }
+
+    /// The whole model: a coupling retrying a step restores it.
+    fn save_state(&self) -> Option<Box<dyn std::any::Any + Send>> {
+        Some(Box::new(self.clone()))
+    }
+
+    fn restore_state(&mut self, state: &(dyn std::any::Any + Send)) -> Result<(), SimError> {
+        let t = self.time;
+        surgbench_core::model::restore_clone(self, state, "meshless", t)
+    }
+
     /// The MLS surface's distance from the node surface it maps (m):
     /// `mls_surface_error_rms_m`, `mls_surface_error_max_m` over the surface
     /// particles, the error the mapping adds on its own in this state.
@@ -118,7 +158,7 @@ impl EnergyProbe for MeshlessTissue {
         let (u, hg) = self.el.energy(&self.x);
         u + hg + self.contact.as_ref().map_or(0.0, |c| c.energy(&self.x))
             - (0..self.x.len())
-                .map(|i| self.mass[i] * self.gravity.dot(&self.x[i]))
+                .map(|i| (self.mass[i] * self.gravity + self.external[i]).dot(&self.x[i]))
                 .sum::<f64>()
     }
     fn forces(&self) -> Vec<f64> {
@@ -133,7 +173,8 @@ impl EnergyProbe for MeshlessTissue {
         }
         f.iter()
             .zip(&self.mass)
-            .flat_map(|(fi, m)| (fi + self.gravity * *m).iter().copied().collect::<Vec<_>>())
+            .zip(&self.external)
+            .flat_map(|((fi, m), fe)| (fi + self.gravity * *m + fe).iter().copied().collect::<Vec<_>>())
             .collect()
     }
     fn free(&self) -> Vec<usize> {

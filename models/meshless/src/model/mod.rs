@@ -341,6 +341,12 @@ pub struct MeshlessTissue {
     /// Penalty contact with the scene's rigid sphere, if any, centred where
     /// the last step's command put it.
     contact: Option<SphereContact>,
+    /// The scene's contact-surface vertices (`TissueBody::surface_vertices`)
+    /// as indices into the MLS surface particles.
+    contact_particles: Vec<usize>,
+    /// Dead nodal forces from a coupled instrument (N): the surface forces
+    /// spread over the nodes by the MLS shape functions.
+    external: Vec<Vec3>,
 }
 
 impl MeshlessTissue {
@@ -537,7 +543,7 @@ impl MeshlessTissue {
         };
         for i in 0..self.x.len() {
             e.kinetic += 0.5 * self.mass[i] * self.v[i].norm_squared();
-            e.external -= self.mass[i] * self.gravity.dot(&self.x[i]);
+            e.external -= (self.mass[i] * self.gravity + self.external[i]).dot(&self.x[i]);
         }
         e
     }

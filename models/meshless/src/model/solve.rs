@@ -47,9 +47,11 @@ impl MeshlessTissue {
         e
     }
 
-    /// Pressure nodal forces at `x` into `self.pforces` (N).
+    /// Pressure nodal forces at `x` into `self.pforces` (N), with the dead
+    /// forces of a coupled instrument (`self.external`) added: every
+    /// integrator takes both as the step's applied loads.
     pub(super) fn pressure_forces(&mut self, x: &[Vec3]) {
-        self.pforces.iter_mut().for_each(|f| *f = Vec3::zeros());
+        self.pforces.clone_from(&self.external);
         self.pressure.add_forces(x, self.load_scale, &mut self.pforces);
     }
 

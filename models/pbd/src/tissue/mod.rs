@@ -688,20 +688,12 @@ impl Model for PbdTissue {
     /// external force in the prediction); a fixed or driven node's are
     /// carried by its support.
     fn set_surface_forces(&mut self, forces: &[Vec3]) -> Result<(), SimError> {
-        if forces.len() != self.surface.len() || !forces.iter().all(|f| f.iter().all(|c| c.is_finite())) {
-            return Err(SimError::SolverFailed {
+        surgbench_core::coupling::store_surface_forces(&self.surface, forces, &mut self.external).map_err(|e| {
+            SimError::SolverFailed {
                 t: self.time,
-                reason: format!(
-                    "pbd-tissue: {} surface forces (finite) expected, got {}",
-                    self.surface.len(),
-                    forces.len()
-                ),
-            });
-        }
-        for (&i, f) in self.surface.iter().zip(forces) {
-            self.external[i] = *f;
-        }
-        Ok(())
+                reason: format!("pbd-tissue: {e}"),
+            }
+        })
     }
 
     /// The whole model (positions, velocities, multipliers, the active set
@@ -711,14 +703,8 @@ impl Model for PbdTissue {
     }
 
     fn restore_state(&mut self, state: &(dyn std::any::Any + Send)) -> Result<(), SimError> {
-        let saved = state
-            .downcast_ref::<PbdTissue>()
-            .ok_or_else(|| SimError::SolverFailed {
-                t: self.time,
-                reason: "pbd-tissue: not a saved pbd-tissue state".into(),
-            })?;
-        self.clone_from(saved);
-        Ok(())
+        let t = self.time;
+        surgbench_core::model::restore_clone(self, state, "pbd-tissue", t)
     }
 
     /// `static_hand_force_n`: the hand force (magnitude) at the converged
