@@ -52,6 +52,7 @@ const ROD_CAPS: &[Capability] = &[
     Capability::Flow,
     Capability::MovingVessel,
     Capability::HapticForce,
+    Capability::DeformableLumen,
 ];
 
 impl ModelFactory for PbdRodFactory {

@@ -133,4 +133,27 @@ impl Model for PbdRod {
     fn dt(&self) -> f64 {
         self.set.dt
     }
+
+    /// A coupled run's deforming wall: the lumen for the following steps.
+    /// The cached SDF values belong to the old lumen and are dropped (the
+    /// next detection queries every particle again); the contact
+    /// parameters stay.
+    fn set_lumen(&mut self, lumen: Arc<dyn Sdf>) -> Result<(), SimError> {
+        self.vessel = Some(lumen);
+        self.sdf_cache
+            .iter_mut()
+            .for_each(|c| *c = (Vec3::zeros(), f64::INFINITY));
+        Ok(())
+    }
+
+    /// The whole rod (positions, velocities, orientations, multipliers and
+    /// contacts; the lumen is shared, not copied).
+    fn save_state(&self) -> Option<Box<dyn std::any::Any + Send>> {
+        Some(Box::new(self.clone()))
+    }
+
+    fn restore_state(&mut self, state: &(dyn std::any::Any + Send)) -> Result<(), SimError> {
+        let t = self.time;
+        surgbench_core::model::restore_clone(self, state, "pbd-rod", t)
+    }
 }
