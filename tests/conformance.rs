@@ -2,7 +2,8 @@
 //! ([`surgbench_comparisons::conformance`], in the spirit of SOFA's
 //! ForceField test harness): same inputs give bit-identical results, rigid
 //! motions of the whole scene change nothing, forces equal minus the energy
-//! gradient, an unsupported scene is refused with a reason. A crate under
+//! gradient, a saved state restores bit for bit, an unsupported scene is
+//! refused with a reason. A crate under
 //! `models/` that is not registered fails the suite.
 //!
 //! One model only: `SURGBENCH_MODELS=der cargo test --test conformance`
@@ -113,6 +114,27 @@ fn forces_are_minus_the_energy_gradient() {
     // DER has an energy: with it in the run, the check must have run.
     if models().iter().any(|f| f.id() == "der") {
         assert!(checked >= 1, "no model exposed an energy probe");
+    }
+}
+
+/// Every model an iterated coupling can retry a step with (DER, pbd-rod
+/// and the three tissues) restores its saved state bit for bit.
+#[test]
+fn a_saved_state_restores_bit_for_bit() {
+    let mut checked = Vec::new();
+    for f in models() {
+        if conformance::restores_state(f).unwrap_or_else(|e| panic!("{e}")) {
+            checked.push(f.id());
+        }
+    }
+    eprintln!("save/restore checked on {checked:?}");
+    for id in ["der", "pbd-rod", "fem", "pbd-tissue", "meshless"] {
+        if models().iter().any(|f| f.id() == id) {
+            assert!(
+                checked.contains(&id),
+                "{id} saves no state, or diverged before the save"
+            );
+        }
     }
 }
 

@@ -94,6 +94,46 @@ pub fn deterministic(f: &dyn ModelFactory) -> Result<Vec<String>, String> {
     Ok(notes)
 }
 
+/// A model that saves its state ([`surgbench_core::Model::save_state`], what
+/// an iterated coupling retries a step from) restores it exactly: on its
+/// first accepted scene, `STEPS` steps, save, `STEPS / 4` more; restore and
+/// the same steps again give the same observation bit for bit. `Ok(false)`
+/// when the model saves nothing or diverges before the save (nothing to
+/// check); `Err` names a restore that does not give the same numbers.
+pub fn restores_state(f: &dyn ModelFactory) -> Result<bool, String> {
+    let Some((sid, scene)) = supported(f).into_iter().next() else {
+        return Ok(false);
+    };
+    let mut m = f
+        .build(&scene, &coarse(f, &scene))
+        .map_err(|e| format!("{} on {sid}: build failed: {e}", f.id()))?;
+    let dt = m.dt();
+    let steps = |m: &mut dyn surgbench_core::Model, from: usize, n: usize| -> Result<(), String> {
+        for k in from..from + n {
+            m.step(dt, &scene.control.command_at((k + 1) as f64 * dt))
+                .map_err(|e| e.to_string())?;
+        }
+        Ok(())
+    };
+    if steps(m.as_mut(), 0, STEPS).is_err() {
+        return Ok(false);
+    }
+    let Some(saved) = m.save_state() else {
+        return Ok(false);
+    };
+    let after = steps(m.as_mut(), STEPS, STEPS / 4).map(|_| m.observe());
+    m.restore_state(saved.as_ref())
+        .map_err(|e| format!("{} on {sid}: its own saved state is refused: {e}", f.id()))?;
+    let again = steps(m.as_mut(), STEPS, STEPS / 4).map(|_| m.observe());
+    if after != again {
+        return Err(format!(
+            "{} on {sid}: stepping from a restored state differs from stepping from the saved one",
+            f.id()
+        ));
+    }
+    Ok(true)
+}
+
 /// Force scale of a scene (N): weight of every body, dead tip forces, and
 /// each rod's bending force scale `EI / L^2` (so unloaded scenes have one).
 fn force_scale(scene: &Scene) -> f64 {
