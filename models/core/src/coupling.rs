@@ -46,19 +46,26 @@ use crate::settings::{Choice, FidelityKey, Settings};
 use std::collections::BTreeMap;
 use std::sync::{Arc, OnceLock};
 
-/// Store `forces` (one per contact-surface node, `surface[k]` the model's
-/// node of the `k`-th) into the per-node `external` forces: the shared body
-/// of the tissue models' [`Model::set_surface_forces`]. A force vector of
-/// the wrong length or with a non-finite entry is refused with a message,
-/// and nothing is stored.
-pub fn store_surface_forces(surface: &[usize], forces: &[Vec3], external: &mut [Vec3]) -> Result<(), String> {
-    if forces.len() != surface.len() || !forces.iter().all(|f| f.iter().all(|c| c.is_finite())) {
+/// Whether `forces` fit a contact surface of `nodes` nodes
+/// ([`Model::set_surface_forces`]): one finite force each; the message
+/// says what was expected and what came.
+pub fn check_surface_forces(nodes: usize, forces: &[Vec3]) -> Result<(), String> {
+    if forces.len() != nodes || !forces.iter().all(|f| f.iter().all(|c| c.is_finite())) {
         return Err(format!(
-            "{} surface forces (finite) expected, got {}",
-            surface.len(),
+            "{nodes} surface forces (finite) expected, got {}",
             forces.len()
         ));
     }
+    Ok(())
+}
+
+/// Store `forces` (one per contact-surface node, `surface[k]` the model's
+/// node of the `k`-th) into the per-node `external` forces: the shared body
+/// of the tissue models' [`Model::set_surface_forces`] where a surface node
+/// is a model node. Forces [`check_surface_forces`] refuses are refused
+/// with its message, and nothing is stored.
+pub fn store_surface_forces(surface: &[usize], forces: &[Vec3], external: &mut [Vec3]) -> Result<(), String> {
+    check_surface_forces(surface.len(), forces)?;
     for (&i, f) in surface.iter().zip(forces) {
         external[i] = *f;
     }

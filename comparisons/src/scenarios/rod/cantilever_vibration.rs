@@ -20,7 +20,7 @@
 //! (about 0.6 A^2 / L) is left out of the score, which reads the transverse
 //! (mode) component of the tip displacement only.
 
-use super::{POISSON, RodCase};
+use super::{POISSON, RodCase, rod_case};
 use crate::params;
 use crate::scenario::{
     Declared, Inputs, Metrics, ParamSet, ParamSpec, Range, Reference, ScenarioInfo, ScenarioRun, Scorer, Sweep,
@@ -94,6 +94,7 @@ impl Reference for Vibration {
         Box::new(VibrationScorer {
             reference: *self,
             track: TipTrack::default(),
+            sum2: 0.0,
         })
     }
 }
@@ -187,12 +188,16 @@ fn peak_between(s: &[(f64, f64)], from: usize, to: usize) -> f64 {
 struct VibrationScorer {
     reference: Vibration,
     track: TipTrack,
+    /// Sum over the observed steps of the squared transverse tip error (m^2).
+    sum2: f64,
 }
 
 impl Scorer for VibrationScorer {
     fn observe_step(&mut self, obs: &Observation) {
         if let Some(r) = obs.rods.first() {
-            let z = (r.tip() - self.reference.rest_tip).dot(&self.reference.direction);
+            let v = &self.reference;
+            let z = (r.tip() - v.rest_tip).dot(&v.direction);
+            self.sum2 += (z - v.amplitude * (v.omega * obs.time).sin()).powi(2);
             self.track.samples.push((obs.time, z));
         }
     }
@@ -200,13 +205,9 @@ impl Scorer for VibrationScorer {
     fn score(&self, obs: &Observation) -> Metrics {
         let r = &self.reference;
         let mut m = Metrics::new();
-        let mut sum2 = 0.0;
-        for (t, z) in &self.track.samples {
-            sum2 += (z - r.amplitude * (r.omega * t).sin()).powi(2);
-        }
         let n = self.track.samples.len();
         if n > 0 {
-            m.insert("tip_rms_error_rel".into(), (sum2 / n as f64).sqrt() / r.amplitude);
+            m.insert("tip_rms_error_rel".into(), (self.sum2 / n as f64).sqrt() / r.amplitude);
         }
         if let Some(o) = self.track.oscillation(r.amplitude) {
             let t_ref = r.period();
@@ -253,13 +254,7 @@ fn first_mode_field(length: f64, omega: f64, amplitude: f64) -> RodVelocity {
 }
 
 fn build(p: &VibrationParams, _: &Inputs) -> Result<ScenarioRun, crate::scenario::UsageError> {
-    let c = RodCase {
-        length: p.length,
-        radius: p.radius,
-        e: p.youngs_modulus,
-        nu: p.poisson_ratio,
-        rho: p.density,
-    };
+    let c = rod_case!(p);
     let mut body = c.body();
     let omega = first_bending_frequency(&body.sections[0], p.length);
     body.initial_velocity = Some(first_mode_field(p.length, omega, p.amplitude));

@@ -3,7 +3,7 @@
 
 use super::*;
 use crate::elastic::StateCache;
-use surgbench_core::coupling::store_surface_forces;
+use surgbench_core::coupling::check_surface_forces;
 use surgbench_core::{DeviceCommand, EnergyProbe, Model, Observation, SimError, StepStats, TissueObs, Vec3};
 
 impl Model for MeshlessTissue {
@@ -102,15 +102,14 @@ impl Model for MeshlessTissue {
     /// transpose of the map (`f_j = sum_k phi_j(p_k) f_k`: the nodal forces
     /// that do the same virtual work), replacing the previous ones.
     fn set_surface_forces(&mut self, forces: &[Vec3]) -> Result<(), SimError> {
-        let mut particle = vec![Vec3::zeros(); self.mls.len()];
-        store_surface_forces(&self.contact_particles, forces, &mut particle).map_err(|e| SimError::SolverFailed {
+        check_surface_forces(self.contact_particles.len(), forces).map_err(|e| SimError::SolverFailed {
             t: self.time,
             reason: format!("meshless: {e}"),
         })?;
         self.external.iter_mut().for_each(|f| *f = Vec3::zeros());
-        for &k in &self.contact_particles {
+        for (&k, f) in self.contact_particles.iter().zip(forces) {
             for (j, phi) in self.mls.shape_functions(k) {
-                self.external[j] += particle[k] * phi;
+                self.external[j] += f * phi;
             }
         }
         Ok(())
