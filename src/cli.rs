@@ -24,6 +24,7 @@ macro_rules! say {
     }};
 }
 mod cluster;
+mod diff;
 
 use std::path::{Path, PathBuf};
 use surgbench_comparisons::batch::{self, BatchOptions};
@@ -74,6 +75,13 @@ enum Cmd {
         /// Report folder holding results.csv.
         dir: PathBuf,
     },
+    /// Compare two reports point by point: status, every metric and the
+    /// median ms/step, with what got worse beyond the tolerances (exit 1 with
+    /// --fail-on-regression when anything did).
+    Diff(diff::DiffArgs),
+    /// CI accuracy gate: a quick report's errors against this CPU type's
+    /// baseline in benches/accuracy-baseline/ (round-off tolerance).
+    AccuracyGate(diff::AccuracyGateArgs),
     /// CI performance gate: instructions per step under valgrind against
     /// benches/gate-baseline.json; fails past the margin in benches/gate.toml.
     Gate(GateArgs),
@@ -423,6 +431,8 @@ where
         Cmd::RunOne(a) => cmd_run_one(&a),
         Cmd::Report { dir } => cmd_report(&dir),
         Cmd::Gate(a) => cmd_gate(&a),
+        Cmd::Diff(a) => diff::cmd_diff(&a),
+        Cmd::AccuracyGate(a) => diff::cmd_accuracy_gate(&a),
         Cmd::Haptic(a) => cmd_haptic(&a),
         Cmd::GateWorkload(a) => cmd_gate_workload(&a),
     };

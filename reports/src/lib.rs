@@ -26,6 +26,7 @@
 
 mod analysis;
 mod data;
+pub mod diff;
 mod doc;
 mod error;
 mod figure;
