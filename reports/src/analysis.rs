@@ -45,6 +45,95 @@ pub fn fit_order(n: &[f64], err: &[f64]) -> Option<f64> {
     Some(-(sxy / sxx))
 }
 
+/// A convergence order fitted with its quality ([`fit_convergence`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OrderFit {
+    /// Least-squares order `p` ([`fit_order`]).
+    pub order: f64,
+    /// Half-width of the 95 % confidence interval of `p`: Student's t with
+    /// `points - 2` degrees of freedom times the slope's standard error (0 for
+    /// an exact power law).
+    pub ci95: f64,
+    /// Coefficient of determination of the line through `(ln n, ln err)`.
+    pub r2: f64,
+    /// Points fitted.
+    pub points: usize,
+}
+
+/// Why no order is reported ([`fit_convergence`]).
+#[derive(Debug, Clone, PartialEq)]
+pub enum NoOrder {
+    /// Fewer than three usable points with distinct `n`: two points always
+    /// lie on a line, so they say nothing of whether `err ~ n^-p` holds.
+    TooFew(usize),
+    /// The errors do not fall strictly as `n` grows (errors in order of
+    /// increasing `n`): no single order describes them (a round-off floor,
+    /// a pre-asymptotic range, or a model that does not converge).
+    NonMonotone(Vec<f64>),
+}
+
+/// Two-sided 97.5 % quantile of Student's t with `dof` degrees of freedom
+/// (tabulated to 3 decimals for 1..=30, the normal quantile beyond).
+fn t975(dof: usize) -> f64 {
+    const T: [f64; 30] = [
+        12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160, 2.145, 2.131,
+        2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048, 2.045, 2.042,
+    ];
+    T.get(dof.wrapping_sub(1)).copied().unwrap_or(1.960)
+}
+
+/// The observed order of [`fit_order`] with what a reader needs to trust
+/// it: at least three points of distinct `n`, errors falling strictly with
+/// `n`, and the fit's 95 % confidence interval and R^2 (issue 22: two-point
+/// "orders" and orders through non-monotone data were printed as if they
+/// meant something). Unusable points (non-positive, non-finite) are dropped
+/// first, as in [`fit_order`]; points of equal `n` count once for the
+/// three-point rule and are not compared with each other.
+///
+/// ```
+/// use surgbench_reports::{fit_convergence, NoOrder};
+/// let n = [10.0, 20.0, 40.0];
+/// let f = fit_convergence(&n, &[1e-2, 2.5e-3, 6.25e-4]).unwrap();
+/// assert!((f.order - 2.0).abs() < 1e-12 && f.ci95 < 1e-9);
+/// assert_eq!(fit_convergence(&n[..2], &[1e-2, 2.5e-3]), Err(NoOrder::TooFew(2)));
+/// assert!(matches!(fit_convergence(&n, &[5.29, 1.45e-3, 0.862]), Err(NoOrder::NonMonotone(_))));
+/// ```
+pub fn fit_convergence(n: &[f64], err: &[f64]) -> Result<OrderFit, NoOrder> {
+    let mut pts: Vec<(f64, f64)> = n
+        .iter()
+        .zip(err)
+        .filter(|(n, e)| n.is_finite() && **n > 0.0 && e.is_finite() && **e > 0.0)
+        .map(|(n, e)| (*n, *e))
+        .collect();
+    pts.sort_by(|a, b| a.0.total_cmp(&b.0).then(b.1.total_cmp(&a.1)));
+    let mut distinct = pts.iter().map(|p| p.0).collect::<Vec<_>>();
+    distinct.dedup();
+    if distinct.len() < 3 {
+        return Err(NoOrder::TooFew(distinct.len()));
+    }
+    if pts.windows(2).any(|w| w[1].0 > w[0].0 && w[1].1 >= w[0].1) {
+        return Err(NoOrder::NonMonotone(pts.iter().map(|p| p.1).collect()));
+    }
+    let (ns, es): (Vec<f64>, Vec<f64>) = pts.iter().copied().unzip();
+    let order = fit_order(&ns, &es).expect("three distinct usable points");
+    let k = pts.len() as f64;
+    let xy: Vec<(f64, f64)> = pts.iter().map(|(n, e)| (n.ln(), e.ln())).collect();
+    let mx = xy.iter().map(|p| p.0).sum::<f64>() / k;
+    let my = xy.iter().map(|p| p.1).sum::<f64>() / k;
+    let sxx: f64 = xy.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    let syy: f64 = xy.iter().map(|p| (p.1 - my).powi(2)).sum();
+    // Residuals of the line y = my - order (x - mx).
+    let ssr: f64 = xy.iter().map(|p| (p.1 - (my - order * (p.0 - mx))).powi(2)).sum();
+    let dof = pts.len() - 2;
+    let se = (ssr / dof as f64 / sxx).sqrt();
+    Ok(OrderFit {
+        order,
+        ci95: t975(dof) * se,
+        r2: if syy > 0.0 { 1.0 - ssr / syy } else { 1.0 },
+        points: pts.len(),
+    })
+}
+
 /// Indices of the Pareto-optimal points of `(time, error)` pairs (both to be
 /// minimised), ordered by increasing time (so by decreasing error).
 ///

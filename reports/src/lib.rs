@@ -36,7 +36,7 @@ mod render;
 pub mod staging;
 mod summary;
 
-pub use analysis::{fit_order, pareto_front};
+pub use analysis::{NoOrder, OrderFit, fit_convergence, fit_order, pareto_front};
 pub use data::{
     FIXED_COLUMNS, OPTIONAL_COLUMNS, ResultRow, RunInfo, SERIES_COLUMNS, Series, format_f64, read_results_csv,
     read_run_info, read_series, row_cells, row_from_cells, write_results_csv, write_run_info,

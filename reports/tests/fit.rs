@@ -3,7 +3,7 @@
 
 mod common;
 
-use surgbench_reports::{fit_order, fmt_sig, fmt_tick, log_ticks, pareto_front};
+use surgbench_reports::{NoOrder, fit_convergence, fit_order, fmt_sig, fmt_tick, log_ticks, pareto_front};
 
 #[test]
 fn recovers_exact_orders() {
@@ -104,4 +104,60 @@ fn tick_and_table_formatting() {
     );
     let (bold, _) = log_ticks(2.1, 4.5);
     assert_eq!(bold.iter().map(|v| fmt_tick(*v)).collect::<Vec<_>>(), ["3", "4"]);
+}
+
+/// Issue 22, item 4: the fit's quality by hand. ln n = 0, 1, 2 with ln err
+/// = 0, -1.5, -2: slope -1 (order 1), residuals 1/6, -1/3, 1/6, so SSR =
+/// 1/6, standard error sqrt(SSR / 1 / sxx) = sqrt(1/12), 95 % half-width
+/// 12.706 sqrt(1/12) (Student's t, 1 degree of freedom), R^2 = 1 - (1/6) /
+/// (78/36).
+#[test]
+fn convergence_fit_quality_by_hand() {
+    let e1 = std::f64::consts::E;
+    let n = [1.0, e1, e1 * e1];
+    let err = [1.0, (-1.5f64).exp(), (-2.0f64).exp()];
+    let f = fit_convergence(&n, &err).unwrap();
+    assert!((f.order - 1.0).abs() < 1e-12, "{f:?}");
+    assert!((f.ci95 - 12.706 * (1.0f64 / 12.0).sqrt()).abs() < 1e-9, "{f:?}");
+    assert!((f.r2 - (1.0 - 6.0 / 78.0)).abs() < 1e-12, "{f:?}");
+    assert_eq!(f.points, 3);
+    // An exact power law: no spread, R^2 = 1.
+    let n = [10.0, 20.0, 40.0, 80.0];
+    let e: Vec<f64> = n.iter().map(|n: &f64| 0.3 * n.powi(-2)).collect();
+    let f = fit_convergence(&n, &e).unwrap();
+    assert!(
+        (f.order - 2.0).abs() < 1e-12 && f.ci95 < 1e-9 && (f.r2 - 1.0).abs() < 1e-12,
+        "{f:?}"
+    );
+}
+
+/// Fewer than three distinct resolutions, or errors that do not fall
+/// strictly, give no order (the cases issue 22 found printed as orders).
+#[test]
+fn convergence_fit_refuses_what_has_no_order() {
+    assert_eq!(fit_convergence(&[10.0, 20.0], &[1e-2, 2.5e-3]), Err(NoOrder::TooFew(2)));
+    // A repeated resolution counts once.
+    assert_eq!(
+        fit_convergence(&[10.0, 20.0, 20.0], &[1e-2, 2.5e-3, 2.5e-3]),
+        Err(NoOrder::TooFew(2))
+    );
+    // Unusable points are dropped before counting.
+    assert_eq!(
+        fit_convergence(&[10.0, 20.0, 40.0], &[1e-2, 0.0, f64::NAN]),
+        Err(NoOrder::TooFew(1))
+    );
+    // The chain-mail's 5.29 -> 0.00145 -> 0.862, in any input order.
+    assert_eq!(
+        fit_convergence(&[40.0, 10.0, 20.0], &[0.862, 5.29, 0.00145]),
+        Err(NoOrder::NonMonotone(vec![5.29, 0.00145, 0.862]))
+    );
+    // Growing errors (negative "orders") and a round-off plateau.
+    assert!(matches!(
+        fit_convergence(&[10.0, 20.0, 40.0], &[1e-3, 2e-3, 4e-3]),
+        Err(NoOrder::NonMonotone(_))
+    ));
+    assert!(matches!(
+        fit_convergence(&[10.0, 20.0, 40.0], &[1e-3, 1e-15, 1e-15]),
+        Err(NoOrder::NonMonotone(_))
+    ));
 }

@@ -7,7 +7,7 @@ mod common;
 use std::fs;
 use std::path::Path;
 
-use surgbench_reports::{read_results_csv, render, render_dir, write_results_csv, write_run_info};
+use surgbench_reports::{Status, read_results_csv, render, render_dir, write_results_csv, write_run_info};
 
 fn read(p: &Path) -> String {
     fs::read_to_string(p).unwrap_or_else(|e| panic!("reading {}: {e}", p.display()))
@@ -99,16 +99,24 @@ fn pages_show_reasons_orders_and_header() {
         html.contains("build failed: segments=5 is below the minimum of 8, &quot;rod too coarse&quot;"),
         "index.html lacks the escaped failure reason"
     );
-    // Orders: der exactly 2 in segments, pbd-rod exactly 1, fem 2 in cells per side.
+    // Orders: der exactly 2 in segments, pbd-rod exactly 1, fem 2 in cells
+    // per side: exact power laws, so the confidence interval is 0 and R^2 1.
+    let orders: Vec<&str> = md
+        .lines()
+        .filter(|l| l.contains(": p = ") || l.contains("no order"))
+        .collect();
     for needle in [
-        "der: p = 2.00 vs segments",
-        "pbd-rod: p = 1.00 vs segments",
-        "fem: p = 2.00 vs cells per side (2^mesh\\_level)",
+        "der: p = 2.00 ± 0.00 (95 %), R² = 1.0000 vs segments",
+        "pbd-rod: p = 1.00 ± 0.00 (95 %), R² = 1.0000 vs segments",
+        "fem: p = 2.00 ± 0.00 (95 %), R² = 1.0000 vs cells per side (2^mesh\\_level)",
     ] {
-        assert!(md.contains(needle), "report.md lacks {needle:?}");
+        assert!(
+            md.contains(needle),
+            "report.md lacks {needle:?}; its orders: {orders:#?}"
+        );
     }
     assert!(
-        html.contains("fem: p = 2.00 vs cells per side (2^mesh_level)"),
+        html.contains("fem: p = 2.00 ± 0.00 (95 %), R² = 1.0000 vs cells per side (2^mesh_level)"),
         "index.html lacks the fem order"
     );
     // Header and the quick-run warning.
@@ -253,4 +261,40 @@ fn static_speed_axis_is_time_to_solution() {
         without.contains("median wall time per step"),
         "rows without solve_wall_s should keep ms/step"
     );
+}
+
+/// Issue 22, item 4: two points and non-monotone errors give "no order"
+/// with the reason, never a slope (the chain-mail's 5.29 -> 0.00145 ->
+/// 0.862 had been printed as p = 1.31).
+#[test]
+fn convergence_without_an_order_says_why() {
+    let base = common::rows()
+        .into_iter()
+        .find(|r| r.model == "der" && r.status == Status::Ok)
+        .unwrap();
+    let mut rows = Vec::new();
+    for (model, pts) in [
+        ("chainmail", vec![(10.0, 5.29), (20.0, 0.00145), (40.0, 0.862)]),
+        ("pbd-rod", vec![(10.0, 1e-2), (20.0, 2.5e-3)]),
+    ] {
+        for (n, e) in pts {
+            let mut r = base.clone();
+            r.model = model.into();
+            r.segments = Some(n);
+            r.fidelity = format!("segments={n}");
+            r.run_dir = String::new();
+            r.metrics.insert("tip_error_rel".into(), e);
+            rows.push(r);
+        }
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    render(tmp.path(), &rows, &common::info()).unwrap();
+    let md = read(&tmp.path().join("report.md"));
+    for needle in [
+        "chainmail: no order vs segments: the error does not fall steadily with refinement (5.29 → 0.00145 → 0.862)",
+        "pbd-rod: no order vs segments: 2 distinct value(s) with an ok, positive error; a fit needs 3",
+    ] {
+        assert!(md.contains(needle), "report.md lacks {needle:?}");
+    }
+    assert!(!md.contains(": p = "), "no slope is printed for these");
 }

@@ -3,10 +3,10 @@
 use std::collections::BTreeMap;
 
 use super::{Group, PLOT_SIZE, Section, Styles, run_label, usable};
-use crate::analysis::{Knob, choose_knob, distinct, fidelity_without};
+use crate::analysis::{Knob, choose_knob, fidelity_without};
 use crate::figure::{Axis, Figure, LegendEntry, Line, Panel, SeriesSpec};
 use crate::format::{fmt_plain, fmt_sig};
-use crate::{ResultRow, Status, fit_order};
+use crate::{NoOrder, ResultRow, Status, fit_convergence};
 
 /// The group key of a run in a convergence study over `knob`: its other knobs.
 fn other_knobs(r: &ResultRow, knob: Knob) -> String {
@@ -120,23 +120,30 @@ fn model_curves(g: &Group, st: &Styles, own: &Own, knob: Knob, plotted: bool, se
         pts.sort_by(|a, b| a.0.total_cmp(&b.0));
         let ns: Vec<f64> = pts.iter().map(|p| p.0).collect();
         let es: Vec<f64> = pts.iter().map(|p| p.1).collect();
-        let p = fit_order(&ns, &es);
+        let fit = fit_convergence(&ns, &es);
         let with = if other.is_empty() {
             String::new()
         } else {
             format!(", {other}")
         };
-        sec.orders.push(match p {
-            Some(p) => format!(
-                "{model}: p = {p:.2} vs {} ({} ok runs, {}{with}).",
+        sec.orders.push(match &fit {
+            Ok(f) => format!(
+                "{model}: p = {:.2} ± {:.2} (95 %), R² = {:.4} vs {} ({} ok runs, {}{with}).",
+                f.order,
+                f.ci95,
+                f.r2,
                 knob.n_name(),
-                pts.len(),
+                f.points,
                 knob_range(knob, &ns)
             ),
-            None => format!(
-                "{model}: no order vs {} (fewer than two distinct values{with}).",
-                knob.n_name()
-            ),
+            Err(why) => {
+                let at = if other.is_empty() {
+                    String::new()
+                } else {
+                    format!(" at {other}")
+                };
+                format!("{model}: no order vs {}{at}: {}.", knob.n_name(), no_order_reason(why))
+            }
         });
         if !plotted {
             continue;
@@ -146,9 +153,10 @@ fn model_curves(g: &Group, st: &Styles, own: &Own, knob: Knob, plotted: bool, se
         } else {
             model.clone()
         };
-        let fit = match p {
-            Some(p) => format!("p = {p:.2}"),
-            None => format!("no fit: {} point(s)", distinct(ns.iter().copied())),
+        let fit = match fit {
+            Ok(f) => format!("p = {:.2} ± {:.2}", f.order, f.ci95),
+            Err(NoOrder::TooFew(k)) => format!("no order: {k} point(s)"),
+            Err(NoOrder::NonMonotone(_)) => "no order: non-monotone".into(),
         };
         let look = st.look(model, variant, Line::Solid);
         curves.legend.push(LegendEntry {
@@ -160,6 +168,17 @@ fn model_curves(g: &Group, st: &Styles, own: &Own, knob: Knob, plotted: bool, se
             points: pts.clone(),
             line_points: pts,
         });
+    }
+}
+
+/// Why a fit gives no order, in words with the data.
+fn no_order_reason(why: &NoOrder) -> String {
+    match why {
+        NoOrder::TooFew(k) => format!("{k} distinct value(s) with an ok, positive error; a fit needs 3"),
+        NoOrder::NonMonotone(e) => format!(
+            "the error does not fall steadily with refinement ({})",
+            e.iter().map(|e| fmt_sig(*e, 3)).collect::<Vec<_>>().join(" → ")
+        ),
     }
 }
 
