@@ -1,9 +1,9 @@
 //! Numbers derived from the rows: observed convergence order, Pareto fronts,
-//! which fidelity knob is swept, the finest run of a model.
+//! which fidelity knob is swept, the finest and the best ok run of a model.
 
 use std::cmp::Ordering;
 
-use crate::ResultRow;
+use crate::{ResultRow, Status};
 
 /// Observed order of convergence `p` from errors `err[i]` at resolutions `n[i]`
 /// (segments, cells per side, steps per second...).
@@ -276,4 +276,26 @@ pub(crate) fn finest<'a>(rows: impl Iterator<Item = &'a ResultRow>) -> Option<&'
         }
     }
     best
+}
+
+/// The run that stands for a model in the summary and the over-time plots
+/// (issue 22: chosen by merit, not by fineness, so a model's face is not an
+/// unstable variant): its most accurate `ok` run by `err`, the fastest
+/// (median ms/step) of equally accurate ones, then the finest; an `ok` run
+/// without an error value only when no `ok` run has one. `None` when no run
+/// is `ok`.
+pub(crate) fn best_ok<'a>(rows: &[&'a ResultRow], err: impl Fn(&ResultRow) -> Option<f64>) -> Option<&'a ResultRow> {
+    let ok: Vec<&ResultRow> = rows.iter().copied().filter(|r| r.status == Status::Ok).collect();
+    let usable = |r: &ResultRow| err(r).filter(|e| e.is_finite()).map(f64::abs);
+    let time = |r: &ResultRow| r.ms_per_step_median.unwrap_or(f64::INFINITY);
+    ok.iter()
+        .copied()
+        .filter_map(|r| usable(r).map(|e| (e, r)))
+        .min_by(|a, b| {
+            a.0.total_cmp(&b.0)
+                .then(time(a.1).total_cmp(&time(b.1)))
+                .then(coarse_to_fine(b.1, a.1))
+        })
+        .map(|(_, r)| r)
+        .or_else(|| finest(ok.into_iter()))
 }

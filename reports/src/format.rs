@@ -1,5 +1,27 @@
 //! Number formatting, axis ticks and text escaping shared by plots and pages.
 
+/// A fidelity or parameter string (`k=v;k=v`) for a page: numbers with more
+/// than 4 significant digits shortened to 4 (`dt=0.006418358500335569` ->
+/// `dt=0.006418`; `dt=0.0005` stays), everything else as it is;
+/// `results.csv` keeps the full string.
+///
+/// ```
+/// assert_eq!(surgbench_reports::short_settings("segments=40;dt=0.006418358500335569;solver=direct"),
+///            "segments=40;dt=0.006418;solver=direct");
+/// ```
+pub fn short_settings(s: &str) -> String {
+    s.split(';')
+        .map(|kv| match kv.split_once('=') {
+            Some((k, v)) => match v.trim().parse::<f64>() {
+                Ok(x) if x.is_finite() && fmt_sig(x, 4).parse::<f64>() != Ok(x) => format!("{k}={}", fmt_sig(x, 4)),
+                _ => kv.to_string(),
+            },
+            None => kv.to_string(),
+        })
+        .collect::<Vec<_>>()
+        .join(";")
+}
+
 /// `v` with `sig` significant digits: plain decimals in `[1e-3, 1e5)`,
 /// otherwise exponent form with trailing zeros trimmed (`1.2e-4`, `3e7`).
 /// Tables use 3 digits; `results.csv` keeps the full value.

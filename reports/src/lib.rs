@@ -42,7 +42,7 @@ pub use data::{
     read_run_info, read_series, row_cells, row_from_cells, write_results_csv, write_run_info,
 };
 pub use error::ReportError;
-pub use format::{fmt_sig, fmt_tick, fnv1a, log_ticks};
+pub use format::{fmt_sig, fmt_tick, fnv1a, log_ticks, short_settings};
 pub use haptic::{HAPTIC_COLUMNS, HapticRow, read_haptic_csv, write_haptic_csv};
 pub use render::{render, render_dir};
 pub use summary::{End, FidelityValue, NodeState, Outcome, RunSummary, Sample, Status, Trip};

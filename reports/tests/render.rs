@@ -298,3 +298,56 @@ fn convergence_without_an_order_says_why() {
     }
     assert!(!md.contains(": p = "), "no slope is printed for these");
 }
+
+/// Issue 22, item 2: the summary shows each model by its best ok run (most
+/// accurate, then fastest), names its settings and counts the runs that
+/// were not ok; an unstable finest run is no longer the model's face.
+#[test]
+fn summary_shows_the_best_ok_run_and_counts_the_rest() {
+    let base = common::rows()
+        .into_iter()
+        .find(|r| r.model == "der" && r.status == Status::Ok)
+        .unwrap();
+    let run = |model: &str, fid: &str, seg: f64, status: Status, err: f64, ms: f64| {
+        let mut r = base.clone();
+        r.model = model.into();
+        r.fidelity = fid.into();
+        r.segments = Some(seg);
+        r.run_dir = String::new();
+        r.status = status;
+        r.reason = if status == Status::Ok {
+            String::new()
+        } else {
+            "energy grew".into()
+        };
+        r.ms_per_step_median = Some(ms);
+        r.metrics.insert("tip_error_rel".into(), err);
+        r
+    };
+    let rows = vec![
+        run("pbd-rod", "segments=10", 10.0, Status::Ok, 1e-2, 0.1),
+        run("pbd-rod", "segments=20;solver=gs", 20.0, Status::Ok, 2e-3, 0.5),
+        run("pbd-rod", "segments=20;solver=direct", 20.0, Status::Ok, 2e-3, 0.2),
+        run(
+            "pbd-rod",
+            "segments=40;dt=0.006418358500335569",
+            40.0,
+            Status::Unstable,
+            9.0,
+            0.3,
+        ),
+        run("chainmail", "segments=10", 10.0, Status::Unstable, 9.0, 0.1),
+        run("chainmail", "segments=20", 20.0, Status::Unstable, 9.0, 0.1),
+    ];
+    let tmp = tempfile::tempdir().unwrap();
+    render(tmp.path(), &rows, &common::info()).unwrap();
+    let md = read(&tmp.path().join("report.md"));
+    for needle in [
+        "0.002 at 0.2 ms/step (segments=20;solver=direct; also 1 unstable)",
+        "no ok run (2 unstable); finest: unstable: energy grew (segments=20)",
+        // The scenario table prints the fidelity to 4 significant digits.
+        "segments=40;dt=0.006418 |",
+    ] {
+        assert!(md.contains(needle), "report.md lacks {needle:?}:\n{md}");
+    }
+}

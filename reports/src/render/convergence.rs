@@ -140,7 +140,7 @@ fn model_curves(g: &Group, st: &Styles, own: &Own, knob: Knob, plotted: bool, se
                 let at = if other.is_empty() {
                     String::new()
                 } else {
-                    format!(" at {other}")
+                    format!(" at {}", crate::short_settings(&other))
                 };
                 format!("{model}: no order vs {}{at}: {}.", knob.n_name(), no_order_reason(why))
             }

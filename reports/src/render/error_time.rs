@@ -3,17 +3,18 @@
 use std::path::Path;
 
 use super::{Group, PLOT_SIZE, Section, Styles, or_unknown, run_label};
-use crate::analysis::finest;
+use crate::analysis::best_ok;
 use crate::figure::{Axis, Figure, LegendEntry, Line, Panel, SeriesSpec};
-use crate::{Status, read_series};
+use crate::read_series;
 
-/// Error over time from `observables.csv` of each model's finest ok run.
+/// Error over time from `observables.csv` of each model's best ok run
+/// ([`best_ok`]: most accurate, then fastest).
 pub(super) fn error_time_figure(dir: &Path, g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figure, String)> {
     let mut series = Vec::new();
     let mut legend = Vec::new();
     for model in &g.models {
         let rows = g.model_rows(model);
-        let Some(r) = finest(rows.iter().copied().filter(|r| r.status == Status::Ok)) else {
+        let Some(r) = best_ok(&rows, |r| g.err(r)) else {
             continue;
         };
         if r.run_dir.trim().is_empty() {
@@ -73,7 +74,7 @@ pub(super) fn error_time_figure(dir: &Path, g: &Group, st: &Styles, sec: &mut Se
         return None;
     }
     let fig = Figure {
-        title: format!("{}: {} over time (finest ok run)", g.title, or_unknown(&g.metric)),
+        title: format!("{}: {} over time (best ok run)", g.title, or_unknown(&g.metric)),
         panels: vec![Panel {
             title: String::new(),
             x: Axis::linear("simulated time t [s]"),
@@ -83,6 +84,6 @@ pub(super) fn error_time_figure(dir: &Path, g: &Group, st: &Styles, sec: &mut Se
         legend,
         size: PLOT_SIZE,
     };
-    let alt = format!("{}: error over simulated time for each model's finest ok run", g.title);
+    let alt = format!("{}: error over simulated time for each model's best ok run", g.title);
     Some((fig, alt))
 }

@@ -264,7 +264,7 @@ fn run_label(r: &ResultRow) -> String {
     if r.fidelity.is_empty() {
         r.model.clone()
     } else {
-        format!("{} {}", r.model, r.fidelity)
+        format!("{} {}", r.model, crate::short_settings(&r.fidelity))
     }
 }
 

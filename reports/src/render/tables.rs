@@ -4,9 +4,9 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use super::{Group, Section, Styles, or_unknown, usable};
 use crate::RunInfo;
-use crate::analysis::finest;
+use crate::analysis::{best_ok, finest};
 use crate::doc::{Block, Cell};
-use crate::format::fmt_sig;
+use crate::format::{fmt_sig, short_settings};
 use crate::{End, ResultRow, Status};
 
 fn num(v: Option<f64>) -> String {
@@ -127,9 +127,9 @@ fn scenario_table(g: &Group, st: &Styles) -> Block {
         let mut row = vec![
             Cell::plain(&r.model),
             Cell::plain(if r.fidelity.is_empty() {
-                "(default)"
+                "(default)".into()
             } else {
-                r.fidelity.as_str()
+                short_settings(&r.fidelity)
             }),
         ];
         if st.by_machine() {
@@ -154,6 +154,75 @@ fn scenario_table(g: &Group, st: &Styles) -> Block {
     Block::Table { header, rows }
 }
 
+/// The fidelity of a run as the summary names it.
+fn settings_of(r: &ResultRow) -> String {
+    if r.fidelity.is_empty() {
+        "default".into()
+    } else {
+        short_settings(&r.fidelity)
+    }
+}
+
+/// How many of `rows` are not ok, by status (`"2 unstable, 1 failed"`).
+fn not_ok_counts(rows: &[&ResultRow]) -> String {
+    let mut counts: std::collections::BTreeMap<&str, usize> = std::collections::BTreeMap::new();
+    for r in rows.iter().filter(|r| r.status != Status::Ok) {
+        *counts.entry(or_unknown(r.status.as_str())).or_default() += 1;
+    }
+    counts
+        .iter()
+        .map(|(s, n)| format!("{n} {s}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// A model's summary cell: its best ok run ([`best_ok`]: most accurate,
+/// then fastest) with its settings and how many of its runs were not ok;
+/// without an ok run, the counts and the finest run's reason.
+fn summary_cell(g: &Group, st: &Styles, mr: &[&ResultRow]) -> Cell {
+    if mr.is_empty() {
+        return Cell::plain("not run");
+    }
+    let others = not_ok_counts(mr);
+    match best_ok(mr, |r| g.err(r)) {
+        Some(r) => {
+            let e = g
+                .err(r)
+                .map(|e| fmt_sig(e, 3))
+                .unwrap_or_else(|| "no error value".into());
+            let on = if st.by_machine() {
+                format!(" on {}", or_unknown(&r.host))
+            } else {
+                String::new()
+            };
+            let also = if others.is_empty() {
+                String::new()
+            } else {
+                format!("; also {others}")
+            };
+            Cell::plain(format!(
+                "{e} at {} ms/step{on} ({}{also})",
+                num(r.ms_per_step_median),
+                settings_of(r)
+            ))
+        }
+        None => {
+            let r = finest(mr.iter().copied()).expect("non-empty");
+            // A model that refuses the scene says why, once.
+            let text = if mr.iter().all(|r| r.status == Status::Unsupported) {
+                reason_text(r)
+            } else {
+                format!("no ok run ({others}); finest: {} ({})", reason_text(r), settings_of(r))
+            };
+            Cell {
+                text,
+                bold: false,
+                warn: true,
+            }
+        }
+    }
+}
+
 fn summary_table(groups: &[Group], st: &Styles) -> Block {
     let mut header = vec!["scenario".to_string(), "primary error".to_string()];
     header.extend(st.models.iter().cloned());
@@ -162,42 +231,7 @@ fn summary_table(groups: &[Group], st: &Styles) -> Block {
         let mut row = vec![Cell::plain(&g.title), Cell::plain(or_unknown(&g.metric))];
         for model in &st.models {
             let mr = g.model_rows(model);
-            let cell = match finest(mr.iter().copied()) {
-                None => Cell::plain("not run"),
-                Some(r) if r.status == Status::Ok => {
-                    let e = g
-                        .err(r)
-                        .map(|e| fmt_sig(e, 3))
-                        .unwrap_or_else(|| "no error value".into());
-                    let on = if st.by_machine() {
-                        format!(" on {}", or_unknown(&r.host))
-                    } else {
-                        String::new()
-                    };
-                    Cell::plain(format!(
-                        "{e} at {} ms/step{on} ({})",
-                        num(r.ms_per_step_median),
-                        if r.fidelity.is_empty() {
-                            "default"
-                        } else {
-                            r.fidelity.as_str()
-                        }
-                    ))
-                }
-                Some(r) => Cell {
-                    text: format!(
-                        "{} ({})",
-                        reason_text(r),
-                        if r.fidelity.is_empty() {
-                            "default"
-                        } else {
-                            r.fidelity.as_str()
-                        }
-                    ),
-                    bold: false,
-                    warn: true,
-                },
-            };
+            let cell = summary_cell(g, st, &mr);
             row.push(cell);
         }
         rows.push(row);
@@ -272,7 +306,7 @@ fn vibration_table(g: &Group) -> Option<Block> {
     let rows = ok
         .iter()
         .map(|r| {
-            let mut row = vec![Cell::plain(&r.model), Cell::plain(&r.fidelity)];
+            let mut row = vec![Cell::plain(&r.model), Cell::plain(short_settings(&r.fidelity))];
             row.extend(
                 VIBRATION_METRICS
                     .iter()
@@ -372,9 +406,10 @@ pub(super) fn page(
         status_counts(rows.iter())
     )));
 
-    b.push(Block::Heading(2, "Summary: finest fidelity of each model".into()));
+    b.push(Block::Heading(2, "Summary: each model's best ok run".into()));
     b.push(Block::Para(
-        "Each cell: the primary error and ms/step of the model's finest run in the scenario, or its status and reason when that run is not ok."
+        "Each cell: the primary error and ms/step of the model's most accurate ok run in the scenario (the fastest of equally accurate ones), \
+         its settings, and how many of the model's other runs were not ok; a model with no ok run shows those counts and its finest run's reason."
             .into(),
     ));
     b.push(summary_table(groups, st));
