@@ -113,9 +113,42 @@ struct SweepArgs {
     /// Wall-clock limit per run in seconds (overrides the comparison).
     #[arg(long)]
     timeout: Option<f64>,
+    /// Accuracy target of a scenario's primary error, SCENARIO=VALUE in the
+    /// metric's unit (repeatable; overrides the comparison and the
+    /// scenario's own): the report's verdicts judge against it.
+    #[arg(long = "target", visible_alias = "tolerance", value_name = "SCENARIO=VALUE")]
+    targets: Vec<String>,
 }
 
 impl SweepArgs {
+    /// The comparison, with the `--target`s applied to its scenarios.
+    fn comparison(&self) -> Result<(Comparison, PathBuf), Failure> {
+        let path = find_comparison(&self.comparison)?;
+        let mut c = Comparison::load(&path)?;
+        for t in &self.targets {
+            let bad = || Failure::Usage(format!("--target {t}: expected SCENARIO=VALUE, VALUE a number >= 0"));
+            let (id, v) = t.split_once('=').ok_or_else(bad)?;
+            let v: f64 = v.trim().parse().map_err(|_| bad())?;
+            if !(v >= 0.0 && v.is_finite()) {
+                return Err(bad());
+            }
+            let mut found = false;
+            for e in c.scenario.iter_mut().filter(|e| e.id == id.trim()) {
+                e.target = Some(v);
+                e.target_from_cli = true;
+                found = true;
+            }
+            if !found {
+                return Err(Failure::Usage(format!(
+                    "--target {t}: the comparison `{}` runs no scenario `{}`",
+                    c.name,
+                    id.trim()
+                )));
+            }
+        }
+        Ok((c, path))
+    }
+
     /// `--repeats` and `--timeout` in range.
     fn check(&self) -> Result<(), Failure> {
         if self.repeats == Some(0) {
@@ -163,6 +196,10 @@ struct RunArgs {
     /// Run a sharded run's finished points again instead of skipping them.
     #[arg(long)]
     no_resume: bool,
+    /// Time budgets per step in ms the report's verdicts name (default
+    /// 1,16,33: a 1 kHz haptic loop, 60 and 30 Hz frames).
+    #[arg(long, value_delimiter = ',', value_name = "MS,...")]
+    budget_ms: Option<Vec<f64>>,
 }
 
 impl RunArgs {
@@ -180,6 +217,19 @@ impl RunArgs {
             exe: launcher()?.exe.clone(),
             exe_args: launcher()?.args.clone(),
             command: std::env::args().collect::<Vec<_>>().join(" "),
+            budgets_ms: match &self.budget_ms {
+                Some(b) => {
+                    if b.is_empty() || !b.iter().all(|v| *v > 0.0 && v.is_finite()) {
+                        return Err(Failure::Usage(format!(
+                            "--budget-ms must be numbers > 0 (ms), got {b:?}"
+                        )));
+                    }
+                    let mut b = b.clone();
+                    b.sort_by(f64::total_cmp);
+                    b
+                }
+                None => surgbench_reports::DEFAULT_BUDGETS_MS.to_vec(),
+            },
         })
     }
 }
@@ -355,6 +405,14 @@ fn list() {
     for s in registry::scenarios() {
         say!("  {:<22} [{}] {}", s.id(), s.family().name(), s.description());
         say!("  {:<22} reference: {}", "", s.reference());
+        let t = s.target();
+        say!(
+            "  {:<22} target: {} <= {} ({})",
+            "",
+            s.primary_error(),
+            short(t.value),
+            t.why
+        );
         if let Some(k) = s.info().mesh {
             say!("  {:<22} --mesh FILE: {}", "", k.describe());
         }
@@ -484,7 +542,7 @@ fn cmd_run(a: RunArgs) -> Result<(), Failure> {
         }
         None => {}
     }
-    let c = Comparison::load(&find_comparison(&a.sweep.comparison)?)?;
+    let (c, _) = a.sweep.comparison()?;
     // From here on a SIGINT/SIGTERM stops the running child and removes the
     // temporary report folder instead of orphaning both.
     install_interrupt()?;

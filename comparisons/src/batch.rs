@@ -54,6 +54,8 @@ pub struct BatchOptions {
     pub exe_args: Vec<String>,
     /// The command line, for the record.
     pub command: String,
+    /// Time budgets per step (ms) for the report's verdicts, ascending.
+    pub budgets_ms: Vec<f64>,
 }
 
 /// Why a batch could not produce a report.
@@ -497,6 +499,8 @@ pub fn run_info(comparison: &str, opts: &BatchOptions) -> RunInfo {
         quick: opts.quick,
         wall_s: 0.0,
         python_models: BTreeMap::new(),
+        targets: BTreeMap::new(),
+        budgets_ms: opts.budgets_ms.clone(),
     }
 }
 
@@ -587,6 +591,7 @@ pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultR
     crate::outdir::check_replaceable(&opts.out, opts.force)?;
     let jobs = checked_jobs(c, opts.quick, opts.models.as_deref())?;
     let haptic_jobs = c.haptic_jobs(opts.quick, opts.models.as_deref())?;
+    let targets = c.targets()?;
     let repeats = repeats_of(c, opts.quick, opts.repeats);
     let timeout = timeout_of(c, opts.timeout_s);
     let tmp = temp_sibling(&opts.out).map_err(io("cannot create the temporary report folder"))?;
@@ -628,6 +633,7 @@ pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultR
         let mut info = run_info(&c.name, opts);
         info.wall_s = started.elapsed().as_secs_f64();
         info.python_models = python_models(&rows);
+        info.targets = targets.clone();
         surgbench_reports::write_results_csv(&tmp.join("results.csv"), &rows)
             .map_err(|e| BatchError::Io(e.to_string()))?;
         let json = serde_json::to_string_pretty(&info).map_err(|e| BatchError::Io(e.to_string()))?;

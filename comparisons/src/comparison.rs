@@ -30,6 +30,7 @@ use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::Path;
 use surgbench_core::{Fidelity, ModelFactory, Scene, Setting};
+use surgbench_reports::AccuracyTarget;
 
 /// Which models a comparison runs.
 #[derive(Debug, Clone, Deserialize, PartialEq)]
@@ -70,6 +71,12 @@ pub struct ScenarioEntry {
     /// Per-model settings.
     #[serde(default)]
     pub models: BTreeMap<String, ModelEntry>,
+    /// Accuracy target of the scenario's primary error (its unit), in place
+    /// of the scenario's own ([`crate::scenario::ScenarioInfo::target`]).
+    pub target: Option<f64>,
+    /// Whether `target` came from the command line (`--target`), not the file.
+    #[serde(skip)]
+    pub target_from_cli: bool,
 }
 
 fn default_rate() -> f64 {
@@ -218,6 +225,16 @@ fn check_point(
     Ok(())
 }
 
+/// A scenario's own accuracy target, as the report records it.
+pub fn default_target(sc: &dyn Scenario) -> AccuracyTarget {
+    let t = sc.target();
+    AccuracyTarget {
+        metric: sc.primary_error().into(),
+        value: t.value,
+        why: t.why.into(),
+    }
+}
+
 impl Comparison {
     /// Parse a comparison file; errors name the file and the problem.
     pub fn load(path: &Path) -> Result<Self, UsageError> {
@@ -248,6 +265,16 @@ impl Comparison {
         {
             return Err(UsageError(format!("timeout_s must be > 0, got {t}")));
         }
+        for e in &c.scenario {
+            if let Some(t) = e.target
+                && !(t >= 0.0 && t.is_finite())
+            {
+                return Err(UsageError(format!(
+                    "scenario {}: target must be a finite number >= 0 (the primary error's unit), got {t}",
+                    e.id
+                )));
+            }
+        }
         for h in &c.haptic {
             for (name, v) in [
                 ("rate_hz", h.rate_hz),
@@ -263,6 +290,42 @@ impl Comparison {
             }
         }
         Ok(c)
+    }
+
+    /// The accuracy target of each scenario the comparison runs: the
+    /// comparison's `target` where it states one, the scenario's own
+    /// otherwise. Two entries of one scenario with different targets are a
+    /// usage error (the report judges a scenario against one target).
+    pub fn targets(&self) -> Result<BTreeMap<String, AccuracyTarget>, UsageError> {
+        let mut out: BTreeMap<String, AccuracyTarget> = BTreeMap::new();
+        for e in &self.scenario {
+            let sc = registry::scenario(&e.id)?;
+            let t = match e.target {
+                Some(v) => AccuracyTarget {
+                    metric: sc.primary_error().into(),
+                    value: v,
+                    why: if e.target_from_cli {
+                        "set on the command line (--target)".into()
+                    } else {
+                        format!("set by the comparison `{}`", self.name)
+                    },
+                },
+                None => default_target(sc),
+            };
+            match out.get(&e.id) {
+                Some(old) if old.value != t.value => {
+                    return Err(UsageError(format!(
+                        "scenario {}: two targets ({} and {}); give every entry of a scenario the same target",
+                        e.id, old.value, t.value
+                    )));
+                }
+                Some(_) => {}
+                None => {
+                    out.insert(e.id.clone(), t);
+                }
+            }
+        }
+        Ok(out)
     }
 
     /// The haptic loops to run, validated like the runs (scenario, model,

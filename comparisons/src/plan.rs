@@ -32,7 +32,9 @@
 use crate::UsageError;
 use crate::comparison::{Comparison, Job};
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::path::Path;
+use surgbench_reports::AccuracyTarget;
 
 /// The plan's file inside a sharded run's folder.
 pub const PLAN_FILE: &str = "plan.json";
@@ -111,6 +113,10 @@ pub struct Plan {
     pub settings: PlanSettings,
     /// Every point, in the comparison's order (the order of `results.csv`).
     pub points: Vec<PlanPoint>,
+    /// The comparison's accuracy targets by scenario, for the merged
+    /// report's verdicts (absent in plans written before targets existed).
+    #[serde(default)]
+    pub targets: BTreeMap<String, AccuracyTarget>,
 }
 
 impl std::ops::Deref for Plan {
@@ -173,6 +179,7 @@ impl Plan {
             comparison: c.name.clone(),
             settings,
             points,
+            targets: c.targets()?,
         })
     }
 

@@ -449,6 +449,10 @@ pub struct ScenarioInfo {
     pub reference: &'static str,
     /// Name of the headline error metric (a key of the scorer's metrics).
     pub primary_error: &'static str,
+    /// The largest primary error a user of this scene would accept, and
+    /// why: the report's verdicts ("accurate enough?") read it; a
+    /// comparison may state another (`target = ...` on its scenario).
+    pub target: Target,
     /// Parameters with defaults (a `params!` struct's `SPECS`).
     pub params: &'static [ParamSpec],
     /// Default fidelity sweep.
@@ -458,6 +462,23 @@ pub struct ScenarioInfo {
     /// The geometry the scenario can take from a user's file instead of
     /// building its own (`run-one --mesh FILE`); `None` for most.
     pub mesh: Option<MeshKind>,
+}
+
+/// An accuracy target: the primary error (in its own unit) a run must not
+/// exceed, with where the number comes from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Target {
+    /// `|primary error| <= value` meets the target.
+    pub value: f64,
+    /// Why this number, one line (shown in the report).
+    pub why: &'static str,
+}
+
+impl Target {
+    /// A target of `value` for the reason `why`.
+    pub const fn new(value: f64, why: &'static str) -> Self {
+        Self { value, why }
+    }
 }
 
 /// Everything a scenario's builder reads besides its typed parameters.
@@ -521,6 +542,10 @@ pub trait Scenario: Send + Sync {
     /// Headline error metric ([`ScenarioInfo::primary_error`]).
     fn primary_error(&self) -> &'static str {
         self.info().primary_error
+    }
+    /// Accuracy target ([`ScenarioInfo::target`]).
+    fn target(&self) -> Target {
+        self.info().target
     }
     /// Parameters with defaults ([`ScenarioInfo::params`]).
     fn params(&self) -> &'static [ParamSpec] {

@@ -124,6 +124,28 @@ pub struct RunInfo {
     /// with their description: the page marks them, since their timings
     /// include the interpreter.
     pub python_models: BTreeMap<String, String>,
+    /// Accuracy target of each scenario by id: the largest primary error a
+    /// user of that scene would accept (the report's verdict table). Empty
+    /// in reports written before targets existed: no verdicts then.
+    pub targets: BTreeMap<String, AccuracyTarget>,
+    /// Time budgets per step (ms) the verdicts are stated against, smallest
+    /// first ([`DEFAULT_BUDGETS_MS`] unless the run names others).
+    pub budgets_ms: Vec<f64>,
+}
+
+/// Time budgets per step (ms): a 1 kHz haptic loop, 60 Hz and 30 Hz visual
+/// frames (issue 22).
+pub const DEFAULT_BUDGETS_MS: [f64; 3] = [1.0, 16.0, 33.0];
+
+/// The largest primary error a scenario's user would accept, and why.
+#[derive(Serialize, Deserialize, Default, Debug, Clone, PartialEq)]
+pub struct AccuracyTarget {
+    /// The metric it bounds (the scenario's primary error).
+    pub metric: String,
+    /// A run meets the target when `|error| <= value` (the metric's unit).
+    pub value: f64,
+    /// Where the number comes from, one line.
+    pub why: String,
 }
 
 /// The fixed columns of `results.csv`, in file order; metric columns follow, sorted.

@@ -2,7 +2,7 @@
 //! ([`surgbench_comparisons::plan`], [`surgbench_comparisons::shard_run`],
 //! [`surgbench_comparisons::merge`]).
 
-use super::{Failure, RunArgs, SweepArgs, find_comparison, install_interrupt};
+use super::{Failure, RunArgs, SweepArgs, install_interrupt};
 use clap::Args;
 use std::path::PathBuf;
 use surgbench_comparisons::batch::{self, BatchError};
@@ -53,8 +53,7 @@ pub(crate) struct MergeArgs {
 fn make_plan(sweep: &SweepArgs, shards: usize) -> Result<(Comparison, Plan, Vec<Job>), Failure> {
     sweep.check()?;
     let (quick, models, repeats, timeout) = (sweep.quick, sweep.models.clone(), sweep.repeats, sweep.timeout);
-    let path = find_comparison(&sweep.comparison)?;
-    let c = Comparison::load(&path)?;
+    let (c, path) = sweep.comparison()?;
     let jobs = batch::checked_jobs(&c, quick, models.as_deref())?;
     let settings = PlanSettings {
         comparison_hash: plan::file_hash(&path)?,

@@ -1,6 +1,7 @@
 use surgbench_comparisons::params;
 use surgbench_comparisons::scenario::{
-    Declared, Inputs, Metrics, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
+    Declared, Inputs, Metrics, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, Sweep, Target,
+    UsageError,
 };
 use surgbench_core::{Family, Observation, RodBody, Scene, Settle, Vec3};
 
@@ -12,6 +13,8 @@ pub const ROD_AT_REST: Declared<RestParams> = Declared {
         family: Family::Rod,
         reference: "closed form: the tip stays at (L, 0, 0)",
         primary_error: "tip_error_m",
+        // The largest primary error its user accepts, and why (the report's verdicts).
+        target: Target::new(1e-6, "a rod at rest stays within a micrometre"),
         params: RestParams::SPECS,
         sweep: Sweep::Knob("segments", &[10.0, 20.0, 40.0]),
         quick: 2,   // --quick runs the first two of the sweep

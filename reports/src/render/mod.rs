@@ -16,6 +16,7 @@ mod pareto;
 mod stability;
 mod tables;
 mod tip_time;
+mod verdicts;
 
 use convergence::convergence_figure;
 use error_time::error_time_figure;

@@ -406,6 +406,7 @@ pub(super) fn page(
         status_counts(rows.iter())
     )));
 
+    b.extend(super::verdicts::verdict_blocks(groups, st, info));
     b.push(Block::Heading(2, "Summary: each model's best ok run".into()));
     b.push(Block::Para(
         "Each cell: the primary error and ms/step of the model's most accurate ok run in the scenario (the fastest of equally accurate ones), \

@@ -151,6 +151,7 @@ pub const NEEDLE_STICK_SLIP: Declared<StickSlipParams> = Declared {
         family: Family::Coupled,
         reference: "closed form: the hand carries the whole pull below f_perlen d (held_error_rel, pull < 0.8 f_perlen d), never more than f_perlen d (threshold_error_rel at the peak), exactly f_perlen d while sliding (slide_error_rel)",
         primary_error: "threshold_error_rel",
+        target: crate::scenario::Target::new(0.02, "2 % of the closed-form breakaway force f_perlen d"),
         params: StickSlipParams::SPECS,
         sweep: LEVELS,
         quick: 1,

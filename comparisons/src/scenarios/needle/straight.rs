@@ -158,6 +158,7 @@ pub const NEEDLE_STRAIGHT: Declared<StraightParams> = Declared {
         family: Family::Coupled,
         reference: "closed form f_cut + f_perlen d + eta v d once every coupling point slides (worst relative error over the insertion past 2 mm); retracting, -(f_perlen + eta v) d once the tissue at the entry stands still (retraction_error_rel); hold and retraction within the friction bounds",
         primary_error: "force_error_rel",
+        target: crate::scenario::Target::new(0.02, "2 % of the closed-form base force (issue 17)"),
         params: StraightParams::SPECS,
         sweep: LEVELS,
         quick: 1,

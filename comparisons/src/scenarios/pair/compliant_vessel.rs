@@ -164,6 +164,7 @@ pub const CATHETER_COMPLIANT_VESSEL: Declared<CompliantParams> = Declared {
         family: Family::Pair,
         reference: "no reference solution yet: catheter surface depth past the deformed wall (geometric), wall displacement, hand force, tip progress",
         primary_error: "max_penetration_m",
+        target: crate::scenario::Target::new(0.0001, "0.1 mm of penetration past the moved wall"),
         params: CompliantParams::SPECS,
         sweep: Sweep::Knob("segments", &[20.0, 40.0]),
         quick: 1,

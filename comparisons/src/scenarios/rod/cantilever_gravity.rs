@@ -18,6 +18,10 @@ pub const CANTILEVER_GRAVITY: Declared<GravityParams> = Declared {
         family: Family::Rod,
         reference: "Euler-Bernoulli w(L) = q L^4/(8EI), scored against the geometrically exact elastica (shooting, 1e-10) it tends to",
         primary_error: "tip_error_rel",
+        target: crate::scenario::Target::new(
+            0.02,
+            "2 % of the Euler-Bernoulli closed form: a static closed form a rod model should reproduce",
+        ),
         params: GravityParams::SPECS,
         sweep: SEGMENTS,
         quick: 3,

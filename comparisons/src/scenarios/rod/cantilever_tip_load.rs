@@ -17,6 +17,10 @@ pub const CANTILEVER_TIP_LOAD: Declared<TipLoadParams> = Declared {
         family: Family::Rod,
         reference: "elastica by shooting (1e-10), checked against Bisshopp & Drucker (1945)",
         primary_error: "tip_error_rel",
+        target: crate::scenario::Target::new(
+            0.02,
+            "2 % of the closed-form tip deflection: a static closed form a rod model should reproduce",
+        ),
         params: TipLoadParams::SPECS,
         sweep: SEGMENTS,
         quick: 3,

@@ -36,6 +36,7 @@ pub const CANTILEVER_VIBRATION: Declared<VibrationParams> = Declared {
         family: Family::Rod,
         reference: "Euler-Bernoulli free vibration: tip A sin(omega_1 t), omega_1 = 1.8751^2 sqrt(EI/(rho A L^4)) (period 12.64 s)",
         primary_error: "tip_rms_error_rel",
+        target: crate::scenario::Target::new(0.05, "the tip within 5 % of the mode's amplitude, RMS over the run"),
         params: VibrationParams::SPECS,
         sweep: Sweep::Knob("dt", &[0.4, 0.2, 0.1, 0.05]),
         quick: 2,

@@ -18,6 +18,10 @@ pub const TORQUE_TRANSFER: Declared<TorqueParams> = Declared {
         family: Family::Rod,
         reference: "closed form: uniform static twist, tip angle = base_twist + T L/(GJ)",
         primary_error: "twist_error_rad",
+        target: crate::scenario::Target::new(
+            0.0175,
+            "1 degree of tip twist: what aiming a tip by base rotation tolerates",
+        ),
         params: TorqueParams::SPECS,
         sweep: SEGMENTS,
         quick: 3,

@@ -57,6 +57,10 @@ pub const BLOCK_COMPRESSION: Declared<BlockParams> = Declared {
         family: Family::Tissue,
         reference: "scikit-fem P2, LINEAR elasticity (datasets/reference/block-compression): exact for small strain; at 20% large-strain laws differ by design",
         primary_error: "force_error_rel",
+        target: crate::scenario::Target::new(
+            0.05,
+            "5 % of the reaction force: the project's default for tissue forces",
+        ),
         params: BlockParams::SPECS,
         sweep: LEVELS,
         quick: 3,

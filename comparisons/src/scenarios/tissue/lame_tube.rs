@@ -99,6 +99,10 @@ pub const LAME_TUBE: Declared<LameParams> = Declared {
         family: Family::Tissue,
         reference: "Lamé closed form, plane strain (Timoshenko & Goodier Sec. 28); scikit-fem P2 agrees to 6.7e-4 (datasets/reference/lame-tube)",
         primary_error: "rms_radial_error_rel",
+        target: crate::scenario::Target::new(
+            0.02,
+            "2 % of the Lamé closed form: a static closed form a tissue model should reproduce",
+        ),
         params: LameParams::SPECS,
         sweep: LEVELS,
         quick: 3,

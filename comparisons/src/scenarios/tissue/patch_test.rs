@@ -117,6 +117,10 @@ pub const PATCH_TEST: Declared<PatchParams> = Declared {
         family: Family::Tissue,
         reference: "exact: the affine field x = X + G (X - c) is the equilibrium of any homogeneous material (patch test, Irons & Razzaque 1972)",
         primary_error: "patch_error_rel",
+        target: crate::scenario::Target::new(
+            1e-06,
+            "linear elements reproduce a homogeneous strain exactly: an error past round-off fails the patch test",
+        ),
         params: PatchParams::SPECS,
         sweep: LEVELS,
         quick: 2,

@@ -206,6 +206,7 @@ pub const SPHERE_INDENTATION: Declared<SphereParams> = Declared {
         family: Family::Tissue,
         reference: "Hertz 1882 (Johnson 1985 eq. 4.22-4.23): F = 4/3 E* sqrt(R) delta^1.5, a = sqrt(R delta); biased by the finite block (+~2 %) and the paraboloid (-0.1 %)",
         primary_error: "force_error_rel",
+        target: crate::scenario::Target::new(0.05, "5 % of the Hertz force: the project's default for tissue forces"),
         params: SphereParams::SPECS,
         sweep: CONTACT_LEVELS,
         quick: 2,

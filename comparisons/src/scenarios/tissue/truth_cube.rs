@@ -224,6 +224,10 @@ pub const TRUTH_CUBE: Declared<TruthParams> = Declared {
         family: Family::Tissue,
         reference: "phantom data, Kerdok et al. 2003 (datasets/phantom/truth-cube); literature material, nothing fitted; bonded plates",
         primary_error: "rms_bead_error_m",
+        target: crate::scenario::Target::new(
+            0.00079,
+            "RMS bead error under a bead's radius (beads of 1.58 mm diameter, Kerdok et al. 2003)",
+        ),
         params: TruthParams::SPECS,
         sweep: LEVELS,
         quick: 3,

@@ -80,6 +80,7 @@ pub const VOLUME_PRESERVATION: Declared<VolumeParams> = Declared {
         family: Family::Tissue,
         reference: "exact volume (V = V0 for an incompressible solid); for nu < 0.5 a property metric, ~(1-2nu) x compression expected",
         primary_error: "volume_change_rel",
+        target: crate::scenario::Target::new(0.01, "1 % volume change of a nearly incompressible block"),
         params: VolumeParams::SPECS,
         sweep: LEVELS,
         quick: 3,

@@ -172,6 +172,10 @@ pub const WALL_INDENTATION: Declared<WallParams> = Declared {
         family: Family::Tissue,
         reference: "scikit-fem P2, LINEAR elasticity, frictionless unilateral contact with the exact gap (datasets/reference/wall-indentation)",
         primary_error: "force_error_rel",
+        target: crate::scenario::Target::new(
+            0.05,
+            "5 % of the reference force: the project's default for tissue forces",
+        ),
         params: WallParams::SPECS,
         sweep: CONTACT_LEVELS,
         quick: 2,

@@ -160,6 +160,10 @@ pub const WALL_PUNCH: Declared<PunchParams> = Declared {
         family: Family::Tissue,
         reference: "scikit-fem P2, LINEAR elasticity, bonded flat punch (datasets/reference/wall-punch)",
         primary_error: "force_error_rel",
+        target: crate::scenario::Target::new(
+            0.05,
+            "5 % of the reference force: the project's default for tissue forces",
+        ),
         params: PunchParams::SPECS,
         sweep: LEVELS,
         quick: 3,

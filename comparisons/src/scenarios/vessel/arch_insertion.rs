@@ -168,6 +168,7 @@ pub const ARCH_INSERTION: Declared<ArchParams> = Declared {
         family: Family::Rod,
         reference: "converged DER tip trajectory cached in datasets/reference/arch-insertion/tip_trajectory.csv (default parameters only); without it only reach, time-to-reach, penetration and hand force are scored",
         primary_error: "tip_error_m",
+        target: crate::scenario::Target::new(0.001, "1 mm of tip position: the project's default for navigation"),
         params: ArchParams::SPECS,
         sweep: Sweep::Knob("segments", &[25.0, 50.0, 100.0, 200.0]),
         quick: 3,

@@ -108,6 +108,7 @@ pub const BRANCH_SELECTION: Declared<BranchParams> = Declared {
         family: Family::Rod,
         reference: "success: tip inside the target branch past target_depth; recorded sessions datasets/vessels/branch-selection-{45,70}.csv",
         primary_error: "target_missed",
+        target: crate::scenario::Target::new(0.0, "the wire must enter the target branch (0 = entered)"),
         params: BranchParams::SPECS,
         sweep: Sweep::Knob("segments", &[20.0, 40.0, 80.0]),
         quick: 3,

@@ -137,6 +137,7 @@ pub const CAPSTAN: Declared<CapstanParams> = Declared {
         family: Family::Rod,
         reference: "capstan law T_out / T_in = exp(mu theta) (valid when EI / (R^2 T_in) << 1, reported as bending_over_tension)",
         primary_error: "tension_ratio_error_rel",
+        target: crate::scenario::Target::new(0.05, "5 % of the capstan (Euler-Eytelwein) tension ratio"),
         params: CapstanParams::SPECS,
         sweep: Sweep::Knob("segments", &[20.0, 40.0, 80.0]),
         quick: 3,

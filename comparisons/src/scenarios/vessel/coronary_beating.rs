@@ -88,6 +88,10 @@ pub const CORONARY_BEATING: Declared<BeatingParams> = Declared {
         family: Family::Rod,
         reference: "stability and penetration against the moving wall (geometry at each observation's time; no reference solution)",
         primary_error: "max_penetration_m",
+        target: crate::scenario::Target::new(
+            0.0001,
+            "0.1 mm of penetration: half the radius of a 0.014 in coronary guidewire (0.18 mm)",
+        ),
         params: BeatingParams::SPECS,
         sweep: Sweep::Knob("segments", &[30.0, 60.0, 120.0]),
         quick: 3,

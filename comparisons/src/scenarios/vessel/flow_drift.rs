@@ -103,6 +103,7 @@ pub const FLOW_DRIFT: Declared<FlowParams> = Declared {
         family: Family::Rod,
         reference: "converged DER tip trajectory cached in datasets/reference/flow-drift/tip_trajectory.csv (default parameters only; the drag law is each model's own); otherwise drift, wall gap and penetration only",
         primary_error: "tip_error_m",
+        target: crate::scenario::Target::new(0.001, "1 mm of tip position: the project's default for navigation"),
         params: FlowParams::SPECS,
         sweep: Sweep::Knob("segments", &[5.0, 10.0, 20.0, 40.0]),
         quick: 3,

@@ -143,6 +143,10 @@ pub const MESH_INSERTION: Declared<MeshInsertionParams> = Declared {
         family: Family::Rod,
         reference: "no reference solution: wire surface depth past the wall (geometric, against the scene's voxel SDF), tip progress; any lumen",
         primary_error: "max_penetration_m",
+        target: crate::scenario::Target::new(
+            0.0001,
+            "0.1 mm of penetration: half the radius of a 0.014 in coronary guidewire (0.18 mm)",
+        ),
         params: MeshInsertionParams::SPECS,
         sweep: Sweep::Knob("segments", &[40.0, 80.0, 160.0]),
         quick: 2,

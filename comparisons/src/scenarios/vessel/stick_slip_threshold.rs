@@ -227,6 +227,7 @@ pub const STICK_SLIP_THRESHOLD: Declared<StickParams> = Declared {
         family: Family::Rod,
         reference: "elastic bar on a Coulomb floor: F = sqrt(2 EA mu_d n u0) while slip spreads, tip moves at mu_d N, slides at mu_d N (a rigid block would hold to mu_s N)",
         primary_error: "threshold_error_rel",
+        target: crate::scenario::Target::new(0.05, "5 % of the closed-form friction threshold"),
         params: StickParams::SPECS,
         sweep: Sweep::Knob("segments", &[10.0, 20.0, 40.0, 80.0]),
         quick: 3,

@@ -1,0 +1,192 @@
+//! The report's first table (issue 22): for each scene and model, the
+//! cheapest tested settings that meet the scene's accuracy target and their
+//! time per step against the budgets, or what the best run reached.
+
+use super::{Group, Styles, or_unknown};
+use crate::analysis::best_ok;
+use crate::doc::{Block, Cell};
+use crate::format::{fmt_sig, short_settings};
+use crate::{AccuracyTarget, DEFAULT_BUDGETS_MS, ResultRow, RunInfo, Status};
+
+/// Where `ms` falls among the budgets: `"within 1 ms"` for the smallest
+/// budget it meets, `"over 33 ms"` past the largest, `"time not measured"`.
+pub(crate) fn budget_class(ms: Option<f64>, budgets: &[f64]) -> String {
+    let Some(ms) = ms.filter(|m| m.is_finite()) else {
+        return "time not measured".into();
+    };
+    match budgets.iter().find(|b| ms <= **b) {
+        Some(b) => format!("within {} ms", fmt_sig(*b, 3)),
+        None => format!("over {} ms", budgets.last().map_or("—".into(), |b| fmt_sig(*b, 3))),
+    }
+}
+
+/// The ok runs of `rows` that meet `target`, cheapest (median ms/step)
+/// first; ties keep input order.
+pub(crate) fn meeting<'a>(rows: &[&'a ResultRow], target: &AccuracyTarget) -> Vec<&'a ResultRow> {
+    let mut ok: Vec<&ResultRow> = rows
+        .iter()
+        .copied()
+        .filter(|r| r.status == Status::Ok)
+        .filter(|r| {
+            r.metrics
+                .get(&target.metric)
+                .is_some_and(|e| e.is_finite() && e.abs() <= target.value)
+        })
+        .collect();
+    ok.sort_by(|a, b| {
+        let t = |r: &ResultRow| r.ms_per_step_median.unwrap_or(f64::INFINITY);
+        t(a).total_cmp(&t(b))
+    });
+    ok
+}
+
+/// One model's verdict on one scene.
+fn verdict_cell(rows: &[&ResultRow], target: &AccuracyTarget, budgets: &[f64]) -> Cell {
+    if rows.is_empty() {
+        return Cell::plain("not run");
+    }
+    if rows.iter().all(|r| r.status == Status::Unsupported) {
+        return Cell::plain("unsupported");
+    }
+    let settings = |r: &ResultRow| {
+        if r.fidelity.is_empty() {
+            "default".to_string()
+        } else {
+            short_settings(&r.fidelity)
+        }
+    };
+    if let Some(r) = meeting(rows, target).first() {
+        return Cell {
+            text: format!(
+                "meets it: {} ms/step, {} ({})",
+                r.ms_per_step_median.map_or("—".into(), |m| fmt_sig(m, 3)),
+                budget_class(r.ms_per_step_median, budgets),
+                settings(r)
+            ),
+            bold: true,
+            warn: false,
+        };
+    }
+    let text = match best_ok(rows, |r| r.metrics.get(&target.metric).copied()) {
+        Some(r) => match r.metrics.get(&target.metric) {
+            Some(e) => format!(
+                "misses it at every tested setting (best: {} at {} ms/step, {})",
+                fmt_sig(*e, 3),
+                r.ms_per_step_median.map_or("—".into(), |m| fmt_sig(m, 3)),
+                settings(r)
+            ),
+            None => "no error value".into(),
+        },
+        None => "no ok run".into(),
+    };
+    Cell {
+        text,
+        bold: false,
+        warn: true,
+    }
+}
+
+/// The verdict table and the list of targets with their reasons; nothing
+/// when the report records no targets (written before they existed).
+pub(super) fn verdict_blocks(groups: &[Group], st: &Styles, info: &RunInfo) -> Vec<Block> {
+    if info.targets.is_empty() {
+        return Vec::new();
+    }
+    let budgets: Vec<f64> = if info.budgets_ms.is_empty() {
+        DEFAULT_BUDGETS_MS.to_vec()
+    } else {
+        info.budgets_ms.clone()
+    };
+    let mut header = vec!["scenario".to_string(), "target".to_string()];
+    header.extend(st.models.iter().cloned());
+    let mut rows = Vec::new();
+    let mut reasons = Vec::new();
+    for g in groups {
+        let scenario = g.rows.first().map_or("", |r| r.scenario.as_str());
+        let Some(t) = info.targets.get(scenario) else {
+            continue;
+        };
+        let mut row = vec![
+            Cell::plain(&g.title),
+            Cell::plain(format!("{} ≤ {}", or_unknown(&t.metric), fmt_sig(t.value, 3))),
+        ];
+        for model in &st.models {
+            row.push(verdict_cell(&g.model_rows(model), t, &budgets));
+        }
+        rows.push(row);
+        let line = format!("{scenario}: {} ≤ {}: {}", t.metric, fmt_sig(t.value, 3), t.why);
+        if !reasons.contains(&line) {
+            reasons.push(line);
+        }
+    }
+    if rows.is_empty() {
+        return Vec::new();
+    }
+    let budget_words: Vec<String> = budgets.iter().map(|b| format!("{} ms", fmt_sig(*b, 3))).collect();
+    vec![
+        Block::Heading(2, "Verdicts: accurate enough, and how fast".into()),
+        Block::Para(format!(
+            "Each cell: the cheapest tested settings (median ms/step) at which the model meets the scene's accuracy target \
+             (its primary error at most the target), with the time budget that run fits (per step: {}; 1 ms is a 1 kHz \
+             haptic loop, 16 and 33 ms a 60 and 30 Hz frame), or the best the model reached when no tested setting meets it. \
+             A verdict holds for the settings tested here only: a finer sweep may meet a target this one misses.",
+            budget_words.join(", ")
+        )),
+        Block::Table { header, rows },
+        Block::Heading(3, "Targets".into()),
+        Block::List(reasons),
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(fid: &str, err: f64, ms: f64) -> ResultRow {
+        let mut r = ResultRow {
+            fidelity: fid.into(),
+            ..Default::default()
+        };
+        r.status = Status::Ok;
+        r.ms_per_step_median = Some(ms);
+        r.metrics.insert("tip_error_rel".into(), err);
+        r
+    }
+
+    /// A model that meets the target only at its second setting is reported
+    /// at that setting; the cheapest of several that meet it wins.
+    #[test]
+    fn cheapest_run_that_meets_the_target() {
+        let t = AccuracyTarget {
+            metric: "tip_error_rel".into(),
+            value: 0.02,
+            why: String::new(),
+        };
+        let rows = [
+            run("segments=10", 0.05, 0.1),
+            run("segments=20", 0.015, 0.3),
+            run("segments=40", 0.004, 0.9),
+        ];
+        let refs: Vec<&ResultRow> = rows.iter().collect();
+        assert_eq!(meeting(&refs, &t)[0].fidelity, "segments=20");
+        let c = verdict_cell(&refs, &t, &DEFAULT_BUDGETS_MS);
+        assert_eq!(c.text, "meets it: 0.3 ms/step, within 1 ms (segments=20)");
+        let strict = AccuracyTarget { value: 1e-3, ..t };
+        let c = verdict_cell(&refs, &strict, &DEFAULT_BUDGETS_MS);
+        assert_eq!(
+            c.text,
+            "misses it at every tested setting (best: 0.004 at 0.9 ms/step, segments=40)"
+        );
+        assert!(c.warn);
+    }
+
+    #[test]
+    fn budget_classes() {
+        let b = DEFAULT_BUDGETS_MS;
+        assert_eq!(budget_class(Some(0.5), &b), "within 1 ms");
+        assert_eq!(budget_class(Some(1.0), &b), "within 1 ms");
+        assert_eq!(budget_class(Some(20.0), &b), "within 33 ms");
+        assert_eq!(budget_class(Some(40.0), &b), "over 33 ms");
+        assert_eq!(budget_class(None, &b), "time not measured");
+    }
+}

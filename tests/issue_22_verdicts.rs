@@ -1,0 +1,107 @@
+//! Issue 22, item 1: every scenario states an accuracy target for its
+//! primary error; a comparison (`target = ...`) or the command line
+//! (`--target SCENARIO=VALUE`) may state another, and `--budget-ms` the
+//! time budgets. The report's first table gives, per scene and model, the
+//! cheapest tested settings that meet the target, or what the best run
+//! reached.
+
+use std::process::{Command, Output};
+use surgbench_comparisons::comparison::Comparison;
+use surgbench_comparisons::registry;
+
+fn surgbench(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_surgbench"))
+        .args(args)
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .expect("surgbench runs")
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// Every scenario's target is a finite number >= 0 with a reason.
+#[test]
+fn every_scenario_states_a_target() {
+    for s in registry::scenarios() {
+        let t = s.target();
+        assert!(t.value >= 0.0 && t.value.is_finite(), "{}: target {}", s.id(), t.value);
+        assert!(t.why.len() > 10, "{}: the target says why", s.id());
+    }
+}
+
+/// A comparison's target replaces the scenario's; a bad one or two that
+/// disagree are usage errors.
+#[test]
+fn comparison_targets_override_and_are_checked() {
+    let toml =
+        |extra: &str| format!("name = \"t\"\nmodels = [\"der\"]\n[[scenario]]\nid = \"cantilever-gravity\"\n{extra}");
+    let c = Comparison::parse(&toml("")).unwrap();
+    let t = &c.targets().unwrap()["cantilever-gravity"];
+    assert_eq!((t.metric.as_str(), t.value), ("tip_error_rel", 0.02));
+    let c = Comparison::parse(&toml("target = 1e-3\n")).unwrap();
+    let t = &c.targets().unwrap()["cantilever-gravity"];
+    assert_eq!(t.value, 1e-3);
+    assert!(t.why.contains("comparison `t`"), "{}", t.why);
+    let e = Comparison::parse(&toml("target = -1\n")).unwrap_err();
+    assert!(e.0.contains("target must be a finite number >= 0"), "{}", e.0);
+    let two =
+        toml("target = 1e-3\n[[scenario]]\nid = \"cantilever-gravity\"\nparams = { length = 0.2 }\ntarget = 2e-3\n");
+    let e = Comparison::parse(&two).unwrap().targets().unwrap_err();
+    assert!(e.0.contains("two targets"), "{}", e.0);
+}
+
+/// End to end: a run whose finer setting meets the target is reported at
+/// it; a target nothing meets says so with the best run; bad flags are
+/// exit 2 and write nothing.
+#[test]
+fn the_report_opens_with_verdicts() {
+    let t = tempfile::tempdir().unwrap();
+    let cmp = t.path().join("v.toml");
+    std::fs::write(
+        &cmp,
+        "name = \"v\"\nmodels = [\"der\"]\n[[scenario]]\nid = \"cantilever-gravity\"\nquick_sweep = { segments = [5, 20] }\n",
+    )
+    .unwrap();
+    let cmp = cmp.to_str().unwrap();
+    let run = |out: &str, extra: &[&str]| {
+        let dir = t.path().join(out);
+        let mut args = vec!["run", cmp, "--quick", "--quiet", "--out", dir.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        let o = surgbench(&args);
+        (o, dir)
+    };
+    // DER's tip error (measured): 4.0e-2 at 5 segments, 2.5e-3 at 20 (second
+    // order: 16x apart). A 5e-3 target is met at 20 segments only.
+    let (o, dir) = run("a", &["--target", "cantilever-gravity=5e-3", "--budget-ms", "16,1"]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
+    assert!(md.contains("Verdicts: accurate enough"), "{md}");
+    assert!(md.contains("tip\\_error\\_rel ≤ 0.005"), "{md}");
+    assert!(
+        md.contains("meets it: ") && md.contains("within 1 ms (segments=20;"),
+        "{md}"
+    );
+    assert!(md.contains("set on the command line (--target)"), "{md}");
+    // Nothing meets 1e-9: the best run is named.
+    let (o, dir) = run("b", &["--tolerance", "cantilever-gravity=1e-9"]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
+    assert!(md.contains("misses it at every tested setting (best: "), "{md}");
+    assert!(md.contains("segments=20;"), "{md}");
+    for bad in [
+        &["--target", "arch-insertion=1e-3"][..],
+        &["--target", "cantilever-gravity"][..],
+        &["--target", "cantilever-gravity=-1"][..],
+        &["--budget-ms", "0"][..],
+    ] {
+        let (o, dir) = run("c", bad);
+        assert_eq!(o.status.code(), Some(2), "{bad:?}: {}", text(&o));
+        assert!(!dir.exists(), "{bad:?} wrote {}", dir.display());
+    }
+}
