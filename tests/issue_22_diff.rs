@@ -5,24 +5,10 @@
 //! per-CPU baseline and never touches the baseline unless told to.
 
 use std::path::Path;
-use std::process::{Command, Output};
+mod common;
+
+use common::{surgbench, text};
 use surgbench_reports::{ResultRow, Status, read_results_csv, write_results_csv};
-
-fn surgbench(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_surgbench"))
-        .args(args)
-        .env("RUST_BACKTRACE", "0")
-        .output()
-        .expect("surgbench runs")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
 
 /// Two points of a synthetic report; `tip` is the first one's primary error.
 fn report(dir: &Path, tip: f64, ms: f64) -> String {

@@ -5,25 +5,11 @@
 //! cheapest tested settings that meet the target, or what the best run
 //! reached.
 
-use std::process::{Command, Output};
+mod common;
+
+use common::{surgbench, text};
 use surgbench_comparisons::comparison::Comparison;
 use surgbench_comparisons::registry;
-
-fn surgbench(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_surgbench"))
-        .args(args)
-        .env("RUST_BACKTRACE", "0")
-        .output()
-        .expect("surgbench runs")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
 
 /// Every scenario's target is a finite number >= 0 with a reason.
 #[test]

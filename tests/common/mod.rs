@@ -44,3 +44,23 @@ pub fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
     }
     out
 }
+
+/// `surgbench ARGS` to completion, output captured, backtraces off.
+#[allow(dead_code)]
+pub fn surgbench(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_surgbench"))
+        .args(args)
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .expect("surgbench runs")
+}
+
+/// A command's stdout then stderr, as text (for assertion messages).
+#[allow(dead_code)]
+pub fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
