@@ -70,7 +70,7 @@ fn the_report_opens_with_verdicts() {
     assert!(md.contains("Verdicts: accurate enough"), "{md}");
     assert!(md.contains("tip\\_error\\_rel ≤ 0.005"), "{md}");
     assert!(
-        md.contains("meets it: ") && md.contains("within 1 ms (segments=20;"),
+        md.contains("meets it: ") && md.contains("s to the solution (segments=20;"),
         "{md}"
     );
     assert!(md.contains("set on the command line (--target)"), "{md}");

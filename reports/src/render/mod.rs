@@ -49,7 +49,7 @@ pub fn render(dir: &Path, rows: &[ResultRow], info: &RunInfo) -> Result<Vec<Path
     for g in &mut groups {
         let mut sec = Section::default();
         let figs = [
-            ("pareto", pareto_figure(g, &styles, &mut sec)),
+            ("pareto", pareto_figure(g, &styles, info, &mut sec)),
             ("convergence", convergence_figure(g, &styles, &mut sec)),
             ("error-time", error_time_figure(dir, g, &styles, &mut sec)),
             ("tip-time", tip_time_figure(dir, g, &styles, &mut sec)),

@@ -1,17 +1,17 @@
 //! The speed-against-error plot of one group, with its Pareto front.
 
 use super::{Group, PLOT_SIZE, Section, Styles, run_label, usable};
-use crate::figure::{Axis, FAIL_GREY, Figure, LegendEntry, Line, Look, Panel, SeriesSpec};
+use crate::figure::{Axis, BAD_RED, FAIL_GREY, Figure, LegendEntry, Line, Look, Panel, SeriesSpec};
 use crate::format::fmt_sig;
-use crate::{End, ResultRow, Status, pareto_front};
+use crate::{End, ResultRow, RunInfo, Status, pareto_front};
 
 /// The speed axis of a group: a run's cost, its name and the axis label.
-struct Cost {
-    of: fn(&ResultRow) -> Option<f64>,
-    name: &'static str,
+pub(super) struct Cost {
+    pub(super) of: fn(&ResultRow) -> Option<f64>,
+    pub(super) name: &'static str,
     axis: &'static str,
     /// A static scene: the cost is the wall time to the solution.
-    is_static: bool,
+    pub(super) is_static: bool,
 }
 
 impl Cost {
@@ -19,7 +19,7 @@ impl Cost {
     /// models take different dt and step counts to the same equilibrium, so
     /// the fair cost is the wall time to the solution, not the time per step.
     /// (Older results.csv files have no solve_wall_s: they keep ms/step.)
-    fn of_group(g: &Group) -> Self {
+    pub(super) fn of_group(g: &Group) -> Self {
         let ok: Vec<&ResultRow> = g.rows.iter().copied().filter(|r| r.status == Status::Ok).collect();
         let is_static = !ok.is_empty()
             && ok
@@ -142,8 +142,91 @@ fn model_series(g: &Group, st: &Styles, cost: &Cost, omitted: &mut Omitted) -> (
     (series, legend)
 }
 
-/// Speed vs error: every ok run a point, each model's Pareto front a line.
-pub(super) fn pareto_figure(g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figure, String)> {
+/// The scene's accuracy target as a horizontal dashed red line, and (per-step
+/// costs only) the time budgets inside the plotted speed range as vertical
+/// dashed grey lines, each with its legend entry; a target far
+/// off the data (more than a decade) is named in a note instead of
+/// stretching the axis.
+fn guide_lines(
+    g: &Group,
+    info: &RunInfo,
+    cost: &Cost,
+    series: &mut Vec<SeriesSpec>,
+    legend: &mut Vec<LegendEntry>,
+    sec: &mut Section,
+) {
+    let pts: Vec<(f64, f64)> = series.iter().flat_map(|s| s.points.iter().copied()).collect();
+    let (x0, x1) = pts
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |a, p| (a.0.min(p.0), a.1.max(p.0)));
+    let (y0, y1) = pts
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |a, p| (a.0.min(p.1), a.1.max(p.1)));
+    let scenario = g.rows.first().map_or("", |r| r.scenario.as_str());
+    if let Some(t) = info.targets.get(scenario).filter(|t| t.metric == g.metric) {
+        if t.value > 0.0 && t.value >= y0 / 10.0 && t.value <= y1 * 10.0 {
+            let look = Look {
+                color: BAD_RED,
+                marker: None,
+                line: Line::Dashed,
+            };
+            series.push(SeriesSpec {
+                look,
+                points: Vec::new(),
+                line_points: vec![(x0, t.value), (x1, t.value)],
+            });
+            legend.push(LegendEntry {
+                look,
+                label: format!(
+                    "target: {} ≤ {} (below the line meets it)",
+                    t.metric,
+                    fmt_sig(t.value, 3)
+                ),
+            });
+        } else {
+            sec.notes.push(format!(
+                "Speed/error plot: the target {} ≤ {} lies more than a decade off the plotted errors ({} to {}) and is not drawn.",
+                t.metric,
+                fmt_sig(t.value, 3),
+                fmt_sig(y0, 3),
+                fmt_sig(y1, 3)
+            ));
+        }
+    }
+    if cost.is_static {
+        return;
+    }
+    let budgets: Vec<f64> = info
+        .budgets_ms
+        .iter()
+        .copied()
+        .filter(|b| *b >= x0 && *b <= x1)
+        .collect();
+    if budgets.is_empty() {
+        return;
+    }
+    let look = Look {
+        color: FAIL_GREY,
+        marker: None,
+        line: Line::Dashed,
+    };
+    for b in &budgets {
+        series.push(SeriesSpec {
+            look,
+            points: Vec::new(),
+            line_points: vec![(*b, y0), (*b, y1)],
+        });
+    }
+    let words: Vec<String> = budgets.iter().map(|b| format!("{} ms", fmt_sig(*b, 3))).collect();
+    legend.push(LegendEntry {
+        look,
+        label: format!("time budget per step: {} (left of the line fits it)", words.join(", ")),
+    });
+}
+
+/// Speed vs error: every ok run a point, each model's Pareto front a line,
+/// the scene's accuracy target and the time budgets as dashed lines.
+pub(super) fn pareto_figure(g: &Group, st: &Styles, info: &RunInfo, sec: &mut Section) -> Option<(Figure, String)> {
     if g.metric.is_empty() {
         sec.notes
             .push("No speed/error plot: no row names a primary error metric.".into());
@@ -151,7 +234,7 @@ pub(super) fn pareto_figure(g: &Group, st: &Styles, sec: &mut Section) -> Option
     }
     let cost = Cost::of_group(g);
     let mut omitted = Omitted::default();
-    let (series, mut legend) = model_series(g, st, &cost, &mut omitted);
+    let (mut series, mut legend) = model_series(g, st, &cost, &mut omitted);
     omission_notes(&omitted, sec);
     if series.is_empty() {
         sec.notes.push(format!(
@@ -168,6 +251,7 @@ pub(super) fn pareto_figure(g: &Group, st: &Styles, sec: &mut Section) -> Option
         },
         label: "line: the model's Pareto front (no run is both faster and more accurate)".into(),
     });
+    guide_lines(g, info, &cost, &mut series, &mut legend, sec);
     let fig = Figure {
         title: format!("{}: speed vs {}", g.title, g.metric),
         panels: vec![Panel {

@@ -2,6 +2,7 @@
 //! cheapest tested settings that meet the scene's accuracy target and their
 //! time per step against the budgets, or what the best run reached.
 
+use super::pareto::Cost;
 use super::{Group, Styles, or_unknown};
 use crate::analysis::best_ok;
 use crate::doc::{Block, Cell};
@@ -20,9 +21,14 @@ pub(crate) fn budget_class(ms: Option<f64>, budgets: &[f64]) -> String {
     }
 }
 
-/// The ok runs of `rows` that meet `target`, cheapest (median ms/step)
-/// first; ties keep input order.
-pub(crate) fn meeting<'a>(rows: &[&'a ResultRow], target: &AccuracyTarget) -> Vec<&'a ResultRow> {
+/// The ok runs of `rows` that meet `target`, cheapest by `cost` first
+/// (median ms/step, or time to solution in a static scene); ties keep input
+/// order.
+pub(crate) fn meeting<'a>(
+    rows: &[&'a ResultRow],
+    target: &AccuracyTarget,
+    cost: fn(&ResultRow) -> Option<f64>,
+) -> Vec<&'a ResultRow> {
     let mut ok: Vec<&ResultRow> = rows
         .iter()
         .copied()
@@ -34,14 +40,32 @@ pub(crate) fn meeting<'a>(rows: &[&'a ResultRow], target: &AccuracyTarget) -> Ve
         })
         .collect();
     ok.sort_by(|a, b| {
-        let t = |r: &ResultRow| r.ms_per_step_median.unwrap_or(f64::INFINITY);
+        let t = |r: &ResultRow| cost(r).unwrap_or(f64::INFINITY);
         t(a).total_cmp(&t(b))
     });
     ok
 }
 
-/// One model's verdict on one scene.
-fn verdict_cell(rows: &[&ResultRow], target: &AccuracyTarget, budgets: &[f64]) -> Cell {
+/// How a run's cost reads in a verdict: ms/step and the budget it fits, or
+/// (a static scene, `budgets` not applicable) the wall time to the solution.
+fn cost_text(r: &ResultRow, is_static: bool, budgets: &[f64]) -> String {
+    if is_static {
+        format!(
+            "{} s to the solution",
+            r.solve_wall_s.map_or("—".into(), |t| fmt_sig(t, 3))
+        )
+    } else {
+        format!(
+            "{} ms/step, {}",
+            r.ms_per_step_median.map_or("—".into(), |m| fmt_sig(m, 3)),
+            budget_class(r.ms_per_step_median, budgets)
+        )
+    }
+}
+
+/// One model's verdict on one scene; `is_static`: the scene's cost is the
+/// time to the solution ([`Cost::of_group`]), not the time per step.
+fn verdict_cell(rows: &[&ResultRow], target: &AccuracyTarget, budgets: &[f64], is_static: bool) -> Cell {
     if rows.is_empty() {
         return Cell::plain("not run");
     }
@@ -55,14 +79,14 @@ fn verdict_cell(rows: &[&ResultRow], target: &AccuracyTarget, budgets: &[f64]) -
             short_settings(&r.fidelity)
         }
     };
-    if let Some(r) = meeting(rows, target).first() {
+    let cost: fn(&ResultRow) -> Option<f64> = if is_static {
+        |r| r.solve_wall_s
+    } else {
+        |r| r.ms_per_step_median
+    };
+    if let Some(r) = meeting(rows, target, cost).first() {
         return Cell {
-            text: format!(
-                "meets it: {} ms/step, {} ({})",
-                r.ms_per_step_median.map_or("—".into(), |m| fmt_sig(m, 3)),
-                budget_class(r.ms_per_step_median, budgets),
-                settings(r)
-            ),
+            text: format!("meets it: {} ({})", cost_text(r, is_static, budgets), settings(r)),
             bold: true,
             warn: false,
         };
@@ -70,9 +94,9 @@ fn verdict_cell(rows: &[&ResultRow], target: &AccuracyTarget, budgets: &[f64]) -
     let text = match best_ok(rows, |r| r.metrics.get(&target.metric).copied()) {
         Some(r) => match r.metrics.get(&target.metric) {
             Some(e) => format!(
-                "misses it at every tested setting (best: {} at {} ms/step, {})",
+                "misses it at every tested setting (best: {} at {}, {})",
                 fmt_sig(*e, 3),
-                r.ms_per_step_median.map_or("—".into(), |m| fmt_sig(m, 3)),
+                cost_text(r, is_static, budgets),
                 settings(r)
             ),
             None => "no error value".into(),
@@ -110,8 +134,9 @@ pub(super) fn verdict_blocks(groups: &[Group], st: &Styles, info: &RunInfo) -> V
             Cell::plain(&g.title),
             Cell::plain(format!("{} ≤ {}", or_unknown(&t.metric), fmt_sig(t.value, 3))),
         ];
+        let is_static = Cost::of_group(g).is_static;
         for model in &st.models {
-            row.push(verdict_cell(&g.model_rows(model), t, &budgets));
+            row.push(verdict_cell(&g.model_rows(model), t, &budgets, is_static));
         }
         rows.push(row);
         let line = format!("{scenario}: {} ≤ {}: {}", t.metric, fmt_sig(t.value, 3), t.why);
@@ -128,7 +153,8 @@ pub(super) fn verdict_blocks(groups: &[Group], st: &Styles, info: &RunInfo) -> V
         Block::Para(format!(
             "Each cell: the cheapest tested settings (median ms/step) at which the model meets the scene's accuracy target \
              (its primary error at most the target), with the time budget that run fits (per step: {}; 1 ms is a 1 kHz \
-             haptic loop, 16 and 33 ms a 60 and 30 Hz frame), or the best the model reached when no tested setting meets it. \
+             haptic loop, 16 and 33 ms a 60 and 30 Hz frame; in a static scene, the wall time to the solution instead), or the \
+             best the model reached when no tested setting meets it. \
              A verdict holds for the settings tested here only: a finer sweep may meet a target this one misses.",
             budget_words.join(", ")
         )),
@@ -168,16 +194,25 @@ mod tests {
             run("segments=40", 0.004, 0.9),
         ];
         let refs: Vec<&ResultRow> = rows.iter().collect();
-        assert_eq!(meeting(&refs, &t)[0].fidelity, "segments=20");
-        let c = verdict_cell(&refs, &t, &DEFAULT_BUDGETS_MS);
+        assert_eq!(meeting(&refs, &t, |r| r.ms_per_step_median)[0].fidelity, "segments=20");
+        let c = verdict_cell(&refs, &t, &DEFAULT_BUDGETS_MS, false);
         assert_eq!(c.text, "meets it: 0.3 ms/step, within 1 ms (segments=20)");
         let strict = AccuracyTarget { value: 1e-3, ..t };
-        let c = verdict_cell(&refs, &strict, &DEFAULT_BUDGETS_MS);
+        let c = verdict_cell(&refs, &strict, &DEFAULT_BUDGETS_MS, false);
         assert_eq!(
             c.text,
-            "misses it at every tested setting (best: 0.004 at 0.9 ms/step, segments=40)"
+            "misses it at every tested setting (best: 0.004 at 0.9 ms/step, within 1 ms, segments=40)"
         );
         assert!(c.warn);
+        // A static scene: the cheapest by time to the solution, no budget.
+        let mut rows = rows;
+        for (r, s) in rows.iter_mut().zip([0.5, 2.0, 1.0]) {
+            r.solve_wall_s = Some(s);
+        }
+        let refs: Vec<&ResultRow> = rows.iter().collect();
+        let loose = AccuracyTarget { value: 0.02, ..strict };
+        let c = verdict_cell(&refs, &loose, &DEFAULT_BUDGETS_MS, true);
+        assert_eq!(c.text, "meets it: 1 s to the solution (segments=40)");
     }
 
     #[test]
