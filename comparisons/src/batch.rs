@@ -633,7 +633,7 @@ pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultR
         let mut info = run_info(&c.name, opts);
         info.wall_s = started.elapsed().as_secs_f64();
         info.python_models = python_models(&rows);
-        info.targets = targets.clone();
+        info.targets = targets;
         surgbench_reports::write_results_csv(&tmp.join("results.csv"), &rows)
             .map_err(|e| BatchError::Io(e.to_string()))?;
         let json = serde_json::to_string_pretty(&info).map_err(|e| BatchError::Io(e.to_string()))?;

@@ -133,6 +133,18 @@ pub struct RunInfo {
     pub budgets_ms: Vec<f64>,
 }
 
+impl RunInfo {
+    /// The time budgets per step (ms) the verdicts and plots use: the run's
+    /// own, or [`DEFAULT_BUDGETS_MS`] for a report that names none.
+    pub fn budgets(&self) -> Vec<f64> {
+        if self.budgets_ms.is_empty() {
+            DEFAULT_BUDGETS_MS.to_vec()
+        } else {
+            self.budgets_ms.clone()
+        }
+    }
+}
+
 /// Time budgets per step (ms): a 1 kHz haptic loop, 60 Hz and 30 Hz visual
 /// frames (issue 22).
 pub const DEFAULT_BUDGETS_MS: [f64; 3] = [1.0, 16.0, 33.0];

@@ -166,7 +166,8 @@ impl ReportDiff {
         self.points.iter().filter(|p| p.worst() == Change::Worse).count() + self.missing.len()
     }
 
-    /// Points with something better and nothing worse.
+    /// Points whose worst verdict is `better`: something improved, nothing
+    /// got worse or changed unjudged.
     pub fn improvements(&self) -> usize {
         self.points.iter().filter(|p| p.worst() == Change::Better).count()
     }
@@ -191,23 +192,18 @@ fn status_rank(s: Status) -> u8 {
 
 /// Rows keyed by point, each key's rows counted in file order.
 fn keyed(rows: &[ResultRow]) -> Vec<(PointKey, &ResultRow)> {
-    let mut seen: BTreeMap<(String, String, String, String), usize> = BTreeMap::new();
+    let mut seen: BTreeMap<PointKey, usize> = BTreeMap::new();
     rows.iter()
         .map(|r| {
-            let base = (
-                r.scenario.clone(),
-                r.model.clone(),
-                r.fidelity.clone(),
-                r.params.clone(),
-            );
-            let n = seen.entry(base).or_insert(0);
-            let key = PointKey {
+            let mut key = PointKey {
                 scenario: r.scenario.clone(),
                 model: r.model.clone(),
                 fidelity: r.fidelity.clone(),
                 params: r.params.clone(),
-                occurrence: *n,
+                occurrence: 0,
             };
+            let n = seen.entry(key.clone()).or_insert(0);
+            key.occurrence = *n;
             *n += 1;
             (key, r)
         })

@@ -261,6 +261,16 @@ fn metric_label(name: &str) -> String {
     }
 }
 
+/// A run's settings as pages name them: `default`, or the fidelity with
+/// numbers to 4 significant digits ([`crate::short_settings`]).
+fn settings_label(r: &ResultRow) -> String {
+    if r.fidelity.is_empty() {
+        "default".into()
+    } else {
+        crate::short_settings(&r.fidelity)
+    }
+}
+
 fn run_label(r: &ResultRow) -> String {
     if r.fidelity.is_empty() {
         r.model.clone()

@@ -25,22 +25,24 @@ impl Cost {
             && ok
                 .iter()
                 .all(|r| matches!(r.end, End::Settled | End::TimeLimit) && r.solve_wall_s.is_some());
-        if is_static {
-            Cost {
-                of: |r| r.solve_wall_s,
-                name: "time to solution (s)",
-                axis: "wall time to solution [s] (log)",
-                is_static,
-            }
-        } else {
-            Cost {
-                of: |r| r.ms_per_step_median,
-                name: "ms/step",
-                axis: "median wall time per step [ms] (log)",
-                is_static,
-            }
-        }
+        if is_static { Cost::TO_SOLUTION } else { Cost::PER_STEP }
     }
+
+    /// A dynamic scene's cost: the median wall time per step.
+    pub(super) const PER_STEP: Cost = Cost {
+        of: |r| r.ms_per_step_median,
+        name: "ms/step",
+        axis: "median wall time per step [ms] (log)",
+        is_static: false,
+    };
+
+    /// A static scene's cost: the wall time to the solution.
+    pub(super) const TO_SOLUTION: Cost = Cost {
+        of: |r| r.solve_wall_s,
+        name: "time to solution (s)",
+        axis: "wall time to solution [s] (log)",
+        is_static: true,
+    };
 }
 
 /// Ok runs the plot leaves out, by why.
@@ -196,12 +198,7 @@ fn guide_lines(
     if cost.is_static {
         return;
     }
-    let budgets: Vec<f64> = info
-        .budgets_ms
-        .iter()
-        .copied()
-        .filter(|b| *b >= x0 && *b <= x1)
-        .collect();
+    let budgets: Vec<f64> = info.budgets().into_iter().filter(|b| *b >= x0 && *b <= x1).collect();
     if budgets.is_empty() {
         return;
     }

@@ -2,7 +2,7 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 
-use super::{Group, Section, Styles, or_unknown, usable};
+use super::{Group, Section, Styles, or_unknown, settings_label, usable};
 use crate::RunInfo;
 use crate::analysis::{best_ok, finest};
 use crate::doc::{Block, Cell};
@@ -154,18 +154,9 @@ fn scenario_table(g: &Group, st: &Styles) -> Block {
     Block::Table { header, rows }
 }
 
-/// The fidelity of a run as the summary names it.
-fn settings_of(r: &ResultRow) -> String {
-    if r.fidelity.is_empty() {
-        "default".into()
-    } else {
-        short_settings(&r.fidelity)
-    }
-}
-
 /// How many of `rows` are not ok, by status (`"2 unstable, 1 failed"`).
 fn not_ok_counts(rows: &[&ResultRow]) -> String {
-    let mut counts: std::collections::BTreeMap<&str, usize> = std::collections::BTreeMap::new();
+    let mut counts: BTreeMap<&str, usize> = BTreeMap::new();
     for r in rows.iter().filter(|r| r.status != Status::Ok) {
         *counts.entry(or_unknown(r.status.as_str())).or_default() += 1;
     }
@@ -203,7 +194,7 @@ fn summary_cell(g: &Group, st: &Styles, mr: &[&ResultRow]) -> Cell {
             Cell::plain(format!(
                 "{e} at {} ms/step{on} ({}{also})",
                 num(r.ms_per_step_median),
-                settings_of(r)
+                settings_label(r)
             ))
         }
         None => {
@@ -212,7 +203,11 @@ fn summary_cell(g: &Group, st: &Styles, mr: &[&ResultRow]) -> Cell {
             let text = if mr.iter().all(|r| r.status == Status::Unsupported) {
                 reason_text(r)
             } else {
-                format!("no ok run ({others}); finest: {} ({})", reason_text(r), settings_of(r))
+                format!(
+                    "no ok run ({others}); finest: {} ({})",
+                    reason_text(r),
+                    settings_label(r)
+                )
             };
             Cell {
                 text,

@@ -3,11 +3,11 @@
 //! time per step against the budgets, or what the best run reached.
 
 use super::pareto::Cost;
-use super::{Group, Styles, or_unknown};
+use super::{Group, Styles, or_unknown, settings_label};
 use crate::analysis::best_ok;
 use crate::doc::{Block, Cell};
-use crate::format::{fmt_sig, short_settings};
-use crate::{AccuracyTarget, DEFAULT_BUDGETS_MS, ResultRow, RunInfo, Status};
+use crate::format::fmt_sig;
+use crate::{AccuracyTarget, ResultRow, RunInfo, Status};
 
 /// Where `ms` falls among the budgets: `"within 1 ms"` for the smallest
 /// budget it meets, `"over 33 ms"` past the largest, `"time not measured"`.
@@ -24,11 +24,7 @@ pub(crate) fn budget_class(ms: Option<f64>, budgets: &[f64]) -> String {
 /// The ok runs of `rows` that meet `target`, cheapest by `cost` first
 /// (median ms/step, or time to solution in a static scene); ties keep input
 /// order.
-pub(crate) fn meeting<'a>(
-    rows: &[&'a ResultRow],
-    target: &AccuracyTarget,
-    cost: fn(&ResultRow) -> Option<f64>,
-) -> Vec<&'a ResultRow> {
+pub(crate) fn meeting<'a>(rows: &[&'a ResultRow], target: &AccuracyTarget, cost: &Cost) -> Vec<&'a ResultRow> {
     let mut ok: Vec<&ResultRow> = rows
         .iter()
         .copied()
@@ -40,7 +36,7 @@ pub(crate) fn meeting<'a>(
         })
         .collect();
     ok.sort_by(|a, b| {
-        let t = |r: &ResultRow| cost(r).unwrap_or(f64::INFINITY);
+        let t = |r: &ResultRow| (cost.of)(r).unwrap_or(f64::INFINITY);
         t(a).total_cmp(&t(b))
     });
     ok
@@ -48,8 +44,8 @@ pub(crate) fn meeting<'a>(
 
 /// How a run's cost reads in a verdict: ms/step and the budget it fits, or
 /// (a static scene, `budgets` not applicable) the wall time to the solution.
-fn cost_text(r: &ResultRow, is_static: bool, budgets: &[f64]) -> String {
-    if is_static {
+fn cost_text(r: &ResultRow, cost: &Cost, budgets: &[f64]) -> String {
+    if cost.is_static {
         format!(
             "{} s to the solution",
             r.solve_wall_s.map_or("—".into(), |t| fmt_sig(t, 3))
@@ -63,30 +59,18 @@ fn cost_text(r: &ResultRow, is_static: bool, budgets: &[f64]) -> String {
     }
 }
 
-/// One model's verdict on one scene; `is_static`: the scene's cost is the
-/// time to the solution ([`Cost::of_group`]), not the time per step.
-fn verdict_cell(rows: &[&ResultRow], target: &AccuracyTarget, budgets: &[f64], is_static: bool) -> Cell {
+/// One model's verdict on one scene, its runs' cost read as `cost` says
+/// ([`Cost::of_group`]: time per step, or time to the solution).
+fn verdict_cell(rows: &[&ResultRow], target: &AccuracyTarget, budgets: &[f64], cost: &Cost) -> Cell {
     if rows.is_empty() {
         return Cell::plain("not run");
     }
     if rows.iter().all(|r| r.status == Status::Unsupported) {
         return Cell::plain("unsupported");
     }
-    let settings = |r: &ResultRow| {
-        if r.fidelity.is_empty() {
-            "default".to_string()
-        } else {
-            short_settings(&r.fidelity)
-        }
-    };
-    let cost: fn(&ResultRow) -> Option<f64> = if is_static {
-        |r| r.solve_wall_s
-    } else {
-        |r| r.ms_per_step_median
-    };
     if let Some(r) = meeting(rows, target, cost).first() {
         return Cell {
-            text: format!("meets it: {} ({})", cost_text(r, is_static, budgets), settings(r)),
+            text: format!("meets it: {} ({})", cost_text(r, cost, budgets), settings_label(r)),
             bold: true,
             warn: false,
         };
@@ -96,8 +80,8 @@ fn verdict_cell(rows: &[&ResultRow], target: &AccuracyTarget, budgets: &[f64], i
             Some(e) => format!(
                 "misses it at every tested setting (best: {} at {}, {})",
                 fmt_sig(*e, 3),
-                cost_text(r, is_static, budgets),
-                settings(r)
+                cost_text(r, cost, budgets),
+                settings_label(r)
             ),
             None => "no error value".into(),
         },
@@ -116,11 +100,7 @@ pub(super) fn verdict_blocks(groups: &[Group], st: &Styles, info: &RunInfo) -> V
     if info.targets.is_empty() {
         return Vec::new();
     }
-    let budgets: Vec<f64> = if info.budgets_ms.is_empty() {
-        DEFAULT_BUDGETS_MS.to_vec()
-    } else {
-        info.budgets_ms.clone()
-    };
+    let budgets = info.budgets();
     let mut header = vec!["scenario".to_string(), "target".to_string()];
     header.extend(st.models.iter().cloned());
     let mut rows = Vec::new();
@@ -134,9 +114,9 @@ pub(super) fn verdict_blocks(groups: &[Group], st: &Styles, info: &RunInfo) -> V
             Cell::plain(&g.title),
             Cell::plain(format!("{} ≤ {}", or_unknown(&t.metric), fmt_sig(t.value, 3))),
         ];
-        let is_static = Cost::of_group(g).is_static;
+        let cost = Cost::of_group(g);
         for model in &st.models {
-            row.push(verdict_cell(&g.model_rows(model), t, &budgets, is_static));
+            row.push(verdict_cell(&g.model_rows(model), t, &budgets, &cost));
         }
         rows.push(row);
         let line = format!("{scenario}: {} ≤ {}: {}", t.metric, fmt_sig(t.value, 3), t.why);
@@ -167,6 +147,7 @@ pub(super) fn verdict_blocks(groups: &[Group], st: &Styles, info: &RunInfo) -> V
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::DEFAULT_BUDGETS_MS;
 
     fn run(fid: &str, err: f64, ms: f64) -> ResultRow {
         let mut r = ResultRow {
@@ -194,11 +175,11 @@ mod tests {
             run("segments=40", 0.004, 0.9),
         ];
         let refs: Vec<&ResultRow> = rows.iter().collect();
-        assert_eq!(meeting(&refs, &t, |r| r.ms_per_step_median)[0].fidelity, "segments=20");
-        let c = verdict_cell(&refs, &t, &DEFAULT_BUDGETS_MS, false);
+        assert_eq!(meeting(&refs, &t, &Cost::PER_STEP)[0].fidelity, "segments=20");
+        let c = verdict_cell(&refs, &t, &DEFAULT_BUDGETS_MS, &Cost::PER_STEP);
         assert_eq!(c.text, "meets it: 0.3 ms/step, within 1 ms (segments=20)");
         let strict = AccuracyTarget { value: 1e-3, ..t };
-        let c = verdict_cell(&refs, &strict, &DEFAULT_BUDGETS_MS, false);
+        let c = verdict_cell(&refs, &strict, &DEFAULT_BUDGETS_MS, &Cost::PER_STEP);
         assert_eq!(
             c.text,
             "misses it at every tested setting (best: 0.004 at 0.9 ms/step, within 1 ms, segments=40)"
@@ -211,7 +192,7 @@ mod tests {
         }
         let refs: Vec<&ResultRow> = rows.iter().collect();
         let loose = AccuracyTarget { value: 0.02, ..strict };
-        let c = verdict_cell(&refs, &loose, &DEFAULT_BUDGETS_MS, true);
+        let c = verdict_cell(&refs, &loose, &DEFAULT_BUDGETS_MS, &Cost::TO_SOLUTION);
         assert_eq!(c.text, "meets it: 1 s to the solution (segments=40)");
     }
 
