@@ -7,7 +7,7 @@
 use std::path::Path;
 mod common;
 
-use common::{surgbench, text};
+use common::{quick_run, surgbench, text};
 use surgbench_reports::{ResultRow, Status, read_results_csv, write_results_csv};
 
 /// Two points of a synthetic report; `tip` is the first one's primary error.
@@ -165,14 +165,7 @@ fn reruns_diff_as_identical() {
         .iter()
         .map(|d| {
             let out = t.path().join(d);
-            let o = surgbench(&[
-                "run",
-                cmp.to_str().unwrap(),
-                "--quick",
-                "--quiet",
-                "--out",
-                out.to_str().unwrap(),
-            ]);
+            let o = quick_run(&cmp, &out, &[]);
             assert_eq!(o.status.code(), Some(0), "{}", text(&o));
             out.to_str().unwrap().to_string()
         })

@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::{surgbench, text};
+use common::{quick_run, text};
 use surgbench_comparisons::comparison::Comparison;
 use surgbench_comparisons::registry;
 
@@ -54,13 +54,9 @@ fn the_report_opens_with_verdicts() {
         "name = \"v\"\nmodels = [\"der\"]\n[[scenario]]\nid = \"cantilever-gravity\"\nquick_sweep = { segments = [5, 20] }\n",
     )
     .unwrap();
-    let cmp = cmp.to_str().unwrap();
     let run = |out: &str, extra: &[&str]| {
         let dir = t.path().join(out);
-        let mut args = vec!["run", cmp, "--quick", "--quiet", "--out", dir.to_str().unwrap()];
-        args.extend_from_slice(extra);
-        let o = surgbench(&args);
-        (o, dir)
+        (quick_run(&cmp, &dir, extra), dir)
     };
     // DER's tip error (measured): 4.0e-2 at 5 segments, 2.5e-3 at 20 (second
     // order: 16x apart). A 5e-3 target is met at 20 segments only.

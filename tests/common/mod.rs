@@ -64,3 +64,13 @@ pub fn text(o: &Output) -> String {
         String::from_utf8_lossy(&o.stderr)
     )
 }
+
+/// `surgbench run CMP --quick --quiet --out OUT EXTRA...`: a comparison
+/// file's quick report into `out`.
+#[allow(dead_code)]
+pub fn quick_run(cmp: &Path, out: &Path, extra: &[&str]) -> Output {
+    let (cmp, out) = (cmp.to_str().unwrap(), out.to_str().unwrap());
+    let mut args = vec!["run", cmp, "--quick", "--quiet", "--out", out];
+    args.extend_from_slice(extra);
+    surgbench(&args)
+}
