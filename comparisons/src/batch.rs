@@ -599,37 +599,47 @@ pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultR
         crate::outdir::write_marker(&tmp).map_err(io("cannot write the report marker"))?;
         let runs = tmp.join("runs");
         std::fs::create_dir_all(&runs).map_err(io("cannot create runs/"))?;
-        let bar = if opts.quiet {
-            indicatif::ProgressBar::hidden()
-        } else {
-            let b = indicatif::ProgressBar::new((jobs.len() + haptic_jobs.len()) as u64);
-            b.set_style(
-                indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {elapsed} {msg}")
-                    .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-            );
-            b
-        };
+        // Each run's cost in the report this batch replaces weights the ETA.
+        let previous = crate::progress::previous_costs(&opts.out);
+        let prior: Vec<Option<f64>> = jobs
+            .iter()
+            .map(|j| {
+                if j.unsupported.is_some() {
+                    Some(0.0)
+                } else {
+                    previous.get(run_dir_of(j).to_string_lossy().as_ref()).copied()
+                }
+            })
+            .chain(haptic_jobs.iter().map(|_| None))
+            .collect();
+        let mut progress = crate::progress::Progress::new(prior, opts.quiet);
         let mut rows = Vec::with_capacity(jobs.len());
-        for job in &jobs {
-            bar.set_message(format!("{} / {} / {}", job.scenario, job.model, job.fidelity));
-            rows.push(run_job(c, job, &runs, opts, repeats, timeout)?);
+        for (i, job) in jobs.iter().enumerate() {
+            let what = format!("{} / {} / {}", job.scenario, job.model, job.fidelity);
+            progress.start(&what);
+            let t0 = Instant::now();
+            let row = run_job(c, job, &runs, opts, repeats, timeout)?;
+            progress.finish(i, &what, row.status.as_str(), t0.elapsed().as_secs_f64());
+            rows.push(row);
             interrupted()?;
-            bar.inc(1);
         }
         // Haptic loops run alone, after every other run, so they do not
         // compete with the batch for the cores.
         let mut haptic = Vec::with_capacity(haptic_jobs.len());
-        for job in &haptic_jobs {
-            bar.set_message(format!("haptic {} / {} at {} Hz", job.scenario, job.model, job.rate_hz));
-            haptic.push(run_haptic_job(job, &runs, opts, timeout)?);
+        for (i, job) in haptic_jobs.iter().enumerate() {
+            let what = format!("haptic {} / {} at {} Hz", job.scenario, job.model, job.rate_hz);
+            progress.start(&what);
+            let t0 = Instant::now();
+            let row = run_haptic_job(job, &runs, opts, timeout)?;
+            progress.finish(jobs.len() + i, &what, row.status.as_str(), t0.elapsed().as_secs_f64());
+            haptic.push(row);
             interrupted()?;
-            bar.inc(1);
         }
         if !haptic.is_empty() {
             surgbench_reports::write_haptic_csv(&tmp.join("haptic.csv"), &haptic)
                 .map_err(|e| BatchError::Io(e.to_string()))?;
         }
-        bar.finish_and_clear();
+        progress.clear();
         let mut info = run_info(&c.name, opts);
         info.wall_s = started.elapsed().as_secs_f64();
         info.python_models = python_models(&rows);

@@ -23,6 +23,7 @@ pub mod interrupt;
 pub mod merge;
 pub mod outdir;
 pub mod plan;
+pub mod progress;
 pub mod references;
 pub mod registry;
 pub mod resolve;

@@ -179,13 +179,14 @@ pub(crate) fn save(fig: &Figure, dir: &Path, stem: &str) -> Result<Vec<PathBuf>,
     register_fonts();
     let svg = dir.join(format!("{stem}.svg"));
     let png = dir.join(format!("{stem}.png"));
+    let size = fitted_size(fig);
     {
-        let root = SVGBackend::new(&svg, fig.size).into_drawing_area();
+        let root = SVGBackend::new(&svg, size).into_drawing_area();
         draw(fig, &root).map_err(|m| ReportError::plot(&svg, m))?;
         root.present().map_err(|e| ReportError::plot(&svg, e))?;
     }
     {
-        let root = BitMapBackend::new(&png, fig.size).into_drawing_area();
+        let root = BitMapBackend::new(&png, size).into_drawing_area();
         draw(fig, &root).map_err(|m| ReportError::plot(&png, m))?;
         root.present().map_err(|e| ReportError::plot(&png, e))?;
     }
@@ -222,11 +223,7 @@ fn draw_title<DB: DrawingBackend>(
 ) -> Result<DrawingArea<DB, Shift>, String> {
     let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
     let (w, _) = root.dim_in_pixel();
-    // DejaVu Sans Bold averages about 0.65 em per character.
-    let chars = title.chars().count().max(1) as f64;
-    let px = (f64::from(w) * 0.95 / (0.65 * chars)).clamp(18.0, TITLE_PX);
-    let per_line = ((f64::from(w) * 0.95) / (0.65 * px)).floor().max(10.0) as usize;
-    let lines = wrap(title, per_line);
+    let (px, lines, used) = title_layout(w, title);
     let style = (FONT, px, FontStyle::Bold)
         .into_font()
         .color(&BLACK)
@@ -240,8 +237,46 @@ fn draw_title<DB: DrawingBackend>(
         ))
         .map_err(e)?;
     }
-    let used = 10 + line_h * lines.len() as i32 + 14;
     Ok(root.split_vertically(used).1)
+}
+
+/// The title's font size (px), its lines at picture width `w`, and the
+/// height it takes (px).
+fn title_layout(w: u32, title: &str) -> (f64, Vec<String>, i32) {
+    // DejaVu Sans Bold averages about 0.65 em per character.
+    let chars = title.chars().count().max(1) as f64;
+    let px = (f64::from(w) * 0.95 / (0.65 * chars)).clamp(18.0, TITLE_PX);
+    let per_line = ((f64::from(w) * 0.95) / (0.65 * px)).floor().max(10.0) as usize;
+    let lines = wrap(title, per_line);
+    let used = 10 + (px * 1.25) as i32 * lines.len() as i32 + 14;
+    (px, lines, used)
+}
+
+/// Characters per legend line (26 at 18 px fit the 330 px legend column).
+const LEGEND_CHARS: usize = 26;
+const LEGEND_TOP: i32 = 40;
+const LEGEND_GAP: i32 = 12;
+
+fn legend_line_h() -> i32 {
+    (LEGEND_PX * 1.3) as i32
+}
+
+/// The height (px) the legend of `entries` needs, from its first line to
+/// below its last.
+fn legend_height(entries: &[LegendEntry]) -> i32 {
+    LEGEND_TOP
+        + entries
+            .iter()
+            .map(|ent| legend_line_h() * wrap(&ent.label, LEGEND_CHARS).len().max(1) as i32 + LEGEND_GAP)
+            .sum::<i32>()
+}
+
+/// `fig`'s size, taller when its title and legend need more height than it
+/// has: a long legend grows the picture instead of running off its bottom.
+pub(crate) fn fitted_size(fig: &Figure) -> (u32, u32) {
+    let (w, h) = fig.size;
+    let need = title_layout(w, &fig.title).2 + legend_height(&fig.legend);
+    (w, h.max(u32::try_from(need).unwrap_or(h)))
 }
 
 /// Data range of the transformed values on one axis, padded so markers are not
@@ -479,12 +514,12 @@ pub(crate) fn wrap(text: &str, width: usize) -> Vec<String> {
 fn draw_legend<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, entries: &[LegendEntry]) -> Result<(), String> {
     let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
     let style = font(LEGEND_PX).pos(Pos::new(HPos::Left, VPos::Center));
-    let line_h = (LEGEND_PX * 1.3) as i32;
-    let mut y = 40;
+    let line_h = legend_line_h();
+    let mut y = LEGEND_TOP;
     let x_sym = 28;
     let x_text = 62;
     for ent in entries {
-        let lines = wrap(&ent.label, 26);
+        let lines = wrap(&ent.label, LEGEND_CHARS);
         let ls = ShapeStyle::from(&ent.look.color).stroke_width(2);
         // Solid: one 44 px stroke; dashed: two 8 px dashes each side of the marker.
         match ent.look.line {
@@ -507,7 +542,7 @@ fn draw_legend<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, entries: &[Leg
             area.draw(&Text::new(l.clone(), (x_text, y + k as i32 * line_h), style.clone()))
                 .map_err(e)?;
         }
-        y += line_h * lines.len().max(1) as i32 + 12;
+        y += line_h * lines.len().max(1) as i32 + LEGEND_GAP;
     }
     Ok(())
 }

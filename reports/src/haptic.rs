@@ -94,7 +94,7 @@ pub fn read_haptic_csv(path: &Path) -> Result<Vec<HapticRow>, ReportError> {
 /// The report section: one table row per loop, with the miss ratio.
 pub(crate) fn section(rows: &[HapticRow]) -> Vec<Block> {
     let mut b = vec![
-        Block::Heading(2, "Haptic loop: can the model drive a device?".into()),
+        Block::Anchored(2, "Haptic loop: can the model drive a device?".into(), "haptic".into()),
         Block::Para(
             "Each model steps on its own thread against the wall clock at the given rate; a deadline miss is a tick \
              whose force was rendered after the next tick began (the device would render a stale force). Latency \

@@ -149,7 +149,7 @@ fn model_curves(g: &Group, st: &Styles, own: &Own, knob: Knob, plotted: bool, se
             continue;
         }
         let tag = if n_groups > 1 && !other.is_empty() {
-            format!("{model} {other}")
+            format!("{model} {}", crate::short_settings(&other))
         } else {
             model.clone()
         };

@@ -5,7 +5,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use crate::analysis::coarse_to_fine;
-use crate::doc::{to_html, to_markdown};
+use crate::doc::{fill_toc, to_html, to_markdown};
 use crate::figure::{Line, Look, Marker, PALETTE, save};
 use crate::format::{fnv1a, slug};
 use crate::{ReportError, ResultRow, RunInfo, staging};
@@ -71,6 +71,8 @@ pub fn render(dir: &Path, rows: &[ResultRow], info: &RunInfo) -> Result<Vec<Path
     if haptic.exists() {
         blocks.extend(crate::haptic::section(&crate::read_haptic_csv(&haptic)?));
     }
+    blocks.extend(tables::run_section(info));
+    fill_toc(&mut blocks);
     let title = format!("surgbench report: {}", or_unknown(&info.comparison));
     let md = dir.join("report.md");
     write_atomic(&md, &to_markdown(&blocks))?;

@@ -48,8 +48,16 @@ fn reason_only(r: &ResultRow) -> String {
     }
 }
 
-fn stable_text(r: &ResultRow) -> String {
+/// The stable / watchdog cell. `reason_shown`: the row's reason is already
+/// in its error cell, so a watchdog message that the reason repeats is not
+/// printed a second time.
+fn stable_text(r: &ResultRow, reason_shown: bool) -> String {
     let wd = r.watchdog.trim();
+    let wd = if reason_shown && !wd.is_empty() && r.reason.contains(wd) {
+        ""
+    } else {
+        wd
+    };
     let at = r
         .watchdog_t
         .map(|t| format!(" at t = {} s", fmt_sig(t, 3)))
@@ -103,7 +111,7 @@ fn scenario_table(g: &Group, st: &Styles) -> Block {
                 Some(e) => Cell {
                     text: fmt_sig(e, 3),
                     bold: e == best_err,
-                    warn: false,
+                    ..Cell::default()
                 },
                 None => Cell::plain("— (not reported)"),
             }
@@ -111,21 +119,27 @@ fn scenario_table(g: &Group, st: &Styles) -> Block {
             // The status column says what happened; here goes why.
             Cell {
                 text: reason_only(r),
-                bold: false,
                 warn: true,
+                ..Cell::default()
             }
         };
         let t_cell = Cell {
             text: num(r.ms_per_step_median),
             bold: is_ok && r.ms_per_step_median == Some(best_t),
-            warn: false,
+            ..Cell::default()
         };
         let iters = match (r.solver_iters_mean, r.solver_iters_max) {
             (None, None) => "—".into(),
             (a, b) => format!("{} / {}", num(a), num(b)),
         };
+        // The model links to the run's folder (its summary.json, observables.csv, ...).
+        let model = if r.run_dir.is_empty() {
+            Cell::plain(&r.model)
+        } else {
+            Cell::plain(&r.model).linked(format!("{}/", r.run_dir))
+        };
         let mut row = vec![
-            Cell::plain(&r.model),
+            model,
             Cell::plain(if r.fidelity.is_empty() {
                 "(default)".into()
             } else {
@@ -138,15 +152,15 @@ fn scenario_table(g: &Group, st: &Styles) -> Block {
         row.extend([
             Cell {
                 text: or_unknown(r.status.as_str()).to_string(),
-                bold: false,
                 warn: !is_ok,
+                ..Cell::default()
             },
             err_cell,
             t_cell,
             Cell::plain(num(r.ms_per_step_p95)),
             Cell::plain(num(r.real_time_factor)),
             Cell::plain(iters),
-            Cell::plain(stable_text(r)),
+            Cell::plain(stable_text(r, !is_ok)),
             Cell::plain(if r.end == End::Unset { "—" } else { r.end.as_str() }),
         ]);
         rows.push(row);
@@ -167,10 +181,10 @@ fn not_ok_counts(rows: &[&ResultRow]) -> String {
         .join(", ")
 }
 
-/// A model's summary cell: its best ok run ([`best_ok`]: most accurate,
-/// then fastest) with its settings and how many of its runs were not ok;
-/// without an ok run, the counts and the finest run's reason.
-fn summary_cell(g: &Group, st: &Styles, mr: &[&ResultRow]) -> Cell {
+/// A model's line in its scene section: its best ok run ([`best_ok`]: most
+/// accurate, then fastest) with its settings and how many of its runs were
+/// not ok; without an ok run, the counts and the finest run's reason.
+fn summary_text(g: &Group, st: &Styles, mr: &[&ResultRow]) -> Cell {
     if mr.is_empty() {
         return Cell::plain("not run");
     }
@@ -211,11 +225,55 @@ fn summary_cell(g: &Group, st: &Styles, mr: &[&ResultRow]) -> Cell {
             };
             Cell {
                 text,
-                bold: false,
                 warn: true,
+                ..Cell::default()
             }
         }
     }
+}
+
+/// A model's cell in the summary matrix, short enough for six models side
+/// by side at 1400 px: the best ok run's error and ms/step and how many runs
+/// were not ok; settings and reasons are in the scene's section.
+fn summary_cell(g: &Group, st: &Styles, mr: &[&ResultRow]) -> Cell {
+    if mr.is_empty() {
+        return Cell::plain("—");
+    }
+    let others = not_ok_counts(mr);
+    let also = if others.is_empty() {
+        String::new()
+    } else {
+        format!(" (+{others})")
+    };
+    match best_ok(mr, |r| g.err(r)) {
+        Some(r) => {
+            let on = if st.by_machine() {
+                format!(" on {}", or_unknown(&r.host))
+            } else {
+                String::new()
+            };
+            Cell::plain(format!(
+                "{} at {} ms{on}{also}",
+                g.err(r).map_or("no error value".into(), |e| fmt_sig(e, 3)),
+                num(r.ms_per_step_median)
+            ))
+        }
+        None if mr.iter().all(|r| r.status == Status::Unsupported) => Cell {
+            text: "unsupported".into(),
+            warn: true,
+            ..Cell::default()
+        },
+        None => Cell {
+            text: format!("no ok run ({others})"),
+            warn: true,
+            ..Cell::default()
+        },
+    }
+}
+
+/// The anchor of a group's section on the page.
+pub(super) fn section_id(g: &Group) -> String {
+    format!("scenario-{}", g.stem)
 }
 
 fn summary_table(groups: &[Group], st: &Styles) -> Block {
@@ -223,18 +281,46 @@ fn summary_table(groups: &[Group], st: &Styles) -> Block {
     header.extend(st.models.iter().cloned());
     let mut rows = Vec::new();
     for g in groups {
-        let mut row = vec![Cell::plain(&g.title), Cell::plain(or_unknown(&g.metric))];
+        let mut row = vec![
+            Cell::plain(&g.title).linked(format!("#{}", section_id(g))),
+            Cell::plain(or_unknown(&g.metric)),
+        ];
         for model in &st.models {
-            let mr = g.model_rows(model);
-            let cell = summary_cell(g, st, &mr);
-            row.push(cell);
+            row.push(summary_cell(g, st, &g.model_rows(model)));
         }
         rows.push(row);
     }
     Block::Table { header, rows }
 }
 
-/// The page header's table: where, when and how the comparison ran.
+/// Per model of the group: its best ok run with settings and, when the
+/// report has a target for the scene, its verdict in full.
+fn model_lines(g: &Group, st: &Styles, info: &RunInfo) -> Vec<String> {
+    g.models
+        .iter()
+        .map(|m| {
+            let mr = g.model_rows(m);
+            let best = summary_text(g, st, &mr).text;
+            let best = if mr.iter().any(|r| r.status == Status::Ok) {
+                format!("best ok run {best}")
+            } else {
+                best
+            };
+            // An unsupported model's line already says so, with the reason.
+            match super::verdicts::verdict_text(g, &mr, info) {
+                Some(v) if v != "unsupported" => format!("{m}: {best}; verdict: {v}"),
+                _ => format!("{m}: {best}"),
+            }
+        })
+        .collect()
+}
+
+/// The page's last section: where, when and how the comparison ran.
+pub(super) fn run_section(info: &RunInfo) -> Vec<Block> {
+    vec![Block::Anchored(2, "Run".into(), "run".into()), run_table(info)]
+}
+
+/// Where, when and how the comparison ran.
 fn run_table(info: &RunInfo) -> Block {
     let versions: Vec<String> = info.crate_versions.iter().map(|(k, v)| format!("{k} {v}")).collect();
     let kv = |k: &str, v: String| vec![Cell::plain(k), Cell::plain(v)];
@@ -313,9 +399,9 @@ fn vibration_table(g: &Group) -> Option<Block> {
     Some(Block::Table { header, rows })
 }
 
-fn scenario_section(g: &Group, sec: &Section, st: &Styles) -> Vec<Block> {
+fn scenario_section(g: &Group, sec: &Section, st: &Styles, info: &RunInfo) -> Vec<Block> {
     let mut b = Vec::new();
-    b.push(Block::Heading(2, format!("Scenario: {}", g.title)));
+    b.push(Block::Anchored(2, format!("Scenario: {}", g.title), section_id(g)));
     b.push(Block::Para(format!(
         "{}. Primary error: {}.",
         status_counts(g.rows.iter().copied()),
@@ -328,6 +414,7 @@ fn scenario_section(g: &Group, sec: &Section, st: &Styles) -> Vec<Block> {
     if !g.metric_notes.is_empty() {
         b.push(Block::List(g.metric_notes.clone()));
     }
+    b.push(Block::List(model_lines(g, st, info)));
     b.push(scenario_table(g, st));
     if let Some(t) = vibration_table(g) {
         b.push(Block::Heading(3, "Period and damping (ok runs)".into()));
@@ -392,26 +479,39 @@ pub(super) fn page(
             st.hosts.join(", ")
         )));
     }
-    b.push(run_table(info));
     b.push(Block::Para(format!(
-        "{}. Units are SI (m, kg, s, N, Pa, rad) unless a column says otherwise; wall times are in ms per step. \
-         Tables round to 3 significant digits, results.csv holds every value at full precision, and the command surgbench report DIR \
-         re-renders this page from results.csv (and summary.json). In each scenario table the lowest error and the fastest \
-         ms/step among ok runs are bold; runs that are not ok show their reason in place of the error.",
+        "{} comparison, {}, commit {}, on {} ({} cores, {} threads), {} s wall time. {}. \
+         Units are SI (m, kg, s, N, Pa, rad) unless a column says otherwise; times per step are in ms. \
+         How it ran, in full: the Run section at the end.",
+        or_unknown(&info.comparison),
+        or_unknown(&info.date),
+        or_unknown(&info.commit),
+        or_unknown(&info.machine),
+        info.cores,
+        info.threads,
+        fmt_sig(info.wall_s, 3),
         status_counts(rows.iter())
     )));
-
+    b.push(Block::Toc(Vec::new()));
     b.extend(super::verdicts::verdict_blocks(groups, st, info));
-    b.push(Block::Heading(2, "Summary: each model's best ok run".into()));
+    b.push(Block::Anchored(2, "Summary: each model's best ok run".into(), "summary".into()));
     b.push(Block::Para(
-        "Each cell: the primary error and ms/step of the model's most accurate ok run in the scenario (the fastest of equally accurate ones), \
-         its settings, and how many of the model's other runs were not ok; a model with no ok run shows those counts and its finest run's reason."
+        "Each cell: the primary error and ms/step of the model's most accurate ok run in the scenario (the fastest of equally accurate ones) \
+         and, after +, how many of the model's runs were not ok; — where the model did not run the scene. Each scenario's section names \
+         the settings of that run, the verdict in full and the reason of every run that is not ok."
             .into(),
     ));
     b.push(summary_table(groups, st));
 
+    b.push(Block::Para(
+        "In each scenario's table, the lowest error and the fastest ms/step among ok runs are bold; runs that are not ok show their \
+         reason in place of the error; each model links to its run's folder (runs/...: summary.json, observables.csv, \
+         final_state.csv). Tables round to 3 significant digits and settings to 4; results.csv holds every value at full \
+         precision, and the command surgbench report DIR re-renders this page from results.csv (and summary.json)."
+            .into(),
+    ));
     for (g, sec) in groups.iter().zip(sections) {
-        b.extend(scenario_section(g, sec, st));
+        b.extend(scenario_section(g, sec, st, info));
     }
     b
 }

@@ -60,38 +60,56 @@ fn cost_text(r: &ResultRow, cost: &Cost, budgets: &[f64]) -> String {
 }
 
 /// One model's verdict on one scene, its runs' cost read as `cost` says
-/// ([`Cost::of_group`]: time per step, or time to the solution).
-fn verdict_cell(rows: &[&ResultRow], target: &AccuracyTarget, budgets: &[f64], cost: &Cost) -> Cell {
+/// ([`Cost::of_group`]: time per step, or time to the solution): the short
+/// cell of the verdict matrix (no settings) and the full text with the
+/// settings, which the scene's section prints.
+fn verdict_cell(rows: &[&ResultRow], target: &AccuracyTarget, budgets: &[f64], cost: &Cost) -> (Cell, String) {
     if rows.is_empty() {
-        return Cell::plain("not run");
+        return (Cell::plain("—"), "not run".into());
     }
     if rows.iter().all(|r| r.status == Status::Unsupported) {
-        return Cell::plain("unsupported");
+        return (Cell::plain("unsupported"), "unsupported".into());
     }
     if let Some(r) = meeting(rows, target, cost).first() {
-        return Cell {
-            text: format!("meets it: {} ({})", cost_text(r, cost, budgets), settings_label(r)),
+        let cell = Cell {
+            text: format!("✓ {}", cost_text(r, cost, budgets)),
             bold: true,
-            warn: false,
+            ..Cell::default()
         };
+        return (
+            cell,
+            format!("meets it: {} ({})", cost_text(r, cost, budgets), settings_label(r)),
+        );
     }
-    let text = match best_ok(rows, |r| r.metrics.get(&target.metric).copied()) {
+    let (short, full) = match best_ok(rows, |r| r.metrics.get(&target.metric).copied()) {
         Some(r) => match r.metrics.get(&target.metric) {
-            Some(e) => format!(
-                "misses it at every tested setting (best: {} at {}, {})",
-                fmt_sig(*e, 3),
-                cost_text(r, cost, budgets),
-                settings_label(r)
+            Some(e) => (
+                format!("✗ best {}", fmt_sig(*e, 3)),
+                format!(
+                    "misses it at every tested setting (best: {} at {}, {})",
+                    fmt_sig(*e, 3),
+                    cost_text(r, cost, budgets),
+                    settings_label(r)
+                ),
             ),
-            None => "no error value".into(),
+            None => ("no error value".to_string(), "no error value".to_string()),
         },
-        None => "no ok run".into(),
+        None => ("no ok run".to_string(), "no ok run".to_string()),
     };
-    Cell {
-        text,
-        bold: false,
+    let cell = Cell {
+        text: short,
         warn: true,
-    }
+        ..Cell::default()
+    };
+    (cell, full)
+}
+
+/// The full verdict of the runs `rows` (one model) on `g`'s scene, with
+/// settings; `None` when the report has no target for the scene.
+pub(super) fn verdict_text(g: &Group, rows: &[&ResultRow], info: &RunInfo) -> Option<String> {
+    let scenario = g.rows.first().map(|r| r.scenario.as_str())?;
+    let t = info.targets.get(scenario)?;
+    Some(verdict_cell(rows, t, &info.budgets(), &Cost::of_group(g)).1)
 }
 
 /// The verdict table and the list of targets with their reasons; nothing
@@ -111,12 +129,12 @@ pub(super) fn verdict_blocks(groups: &[Group], st: &Styles, info: &RunInfo) -> V
             continue;
         };
         let mut row = vec![
-            Cell::plain(&g.title),
+            Cell::plain(&g.title).linked(format!("#{}", super::tables::section_id(g))),
             Cell::plain(format!("{} ≤ {}", or_unknown(&t.metric), fmt_sig(t.value, 3))),
         ];
         let cost = Cost::of_group(g);
         for model in &st.models {
-            row.push(verdict_cell(&g.model_rows(model), t, &budgets, &cost));
+            row.push(verdict_cell(&g.model_rows(model), t, &budgets, &cost).0);
         }
         rows.push(row);
         let line = format!("{scenario}: {} ≤ {}: {}", t.metric, fmt_sig(t.value, 3), t.why);
@@ -129,12 +147,13 @@ pub(super) fn verdict_blocks(groups: &[Group], st: &Styles, info: &RunInfo) -> V
     }
     let budget_words: Vec<String> = budgets.iter().map(|b| format!("{} ms", fmt_sig(*b, 3))).collect();
     vec![
-        Block::Heading(2, "Verdicts: accurate enough, and how fast".into()),
+        Block::Anchored(2, "Verdicts: accurate enough, and how fast".into(), "verdicts".into()),
         Block::Para(format!(
-            "Each cell: the cheapest tested settings (median ms/step) at which the model meets the scene's accuracy target \
+            "Each cell: ✓ and the cost of the cheapest tested settings (median ms/step) at which the model meets the scene's accuracy target \
              (its primary error at most the target), with the time budget that run fits (per step: {}; 1 ms is a 1 kHz \
-             haptic loop, 16 and 33 ms a 60 and 30 Hz frame; in a static scene, the wall time to the solution instead), or the \
-             best the model reached when no tested setting meets it. \
+             haptic loop, 16 and 33 ms a 60 and 30 Hz frame; in a static scene, the wall time to the solution instead), or ✗ and the \
+             best error the model reached when no tested setting meets it; — where the model did not run the scene. \
+             Each scenario's section names the settings of every verdict. \
              A verdict holds for the settings tested here only: a finer sweep may meet a target this one misses.",
             budget_words.join(", ")
         )),
@@ -176,14 +195,16 @@ mod tests {
         ];
         let refs: Vec<&ResultRow> = rows.iter().collect();
         assert_eq!(meeting(&refs, &t, &Cost::PER_STEP)[0].fidelity, "segments=20");
-        let c = verdict_cell(&refs, &t, &DEFAULT_BUDGETS_MS, &Cost::PER_STEP);
-        assert_eq!(c.text, "meets it: 0.3 ms/step, within 1 ms (segments=20)");
+        let (c, full) = verdict_cell(&refs, &t, &DEFAULT_BUDGETS_MS, &Cost::PER_STEP);
+        assert_eq!(full, "meets it: 0.3 ms/step, within 1 ms (segments=20)");
+        assert_eq!(c.text, "✓ 0.3 ms/step, within 1 ms");
         let strict = AccuracyTarget { value: 1e-3, ..t };
-        let c = verdict_cell(&refs, &strict, &DEFAULT_BUDGETS_MS, &Cost::PER_STEP);
+        let (c, full) = verdict_cell(&refs, &strict, &DEFAULT_BUDGETS_MS, &Cost::PER_STEP);
         assert_eq!(
-            c.text,
+            full,
             "misses it at every tested setting (best: 0.004 at 0.9 ms/step, within 1 ms, segments=40)"
         );
+        assert_eq!(c.text, "✗ best 0.004");
         assert!(c.warn);
         // A static scene: the cheapest by time to the solution, no budget.
         let mut rows = rows;
@@ -192,8 +213,8 @@ mod tests {
         }
         let refs: Vec<&ResultRow> = rows.iter().collect();
         let loose = AccuracyTarget { value: 0.02, ..strict };
-        let c = verdict_cell(&refs, &loose, &DEFAULT_BUDGETS_MS, &Cost::TO_SOLUTION);
-        assert_eq!(c.text, "meets it: 1 s to the solution (segments=40)");
+        let (_, full) = verdict_cell(&refs, &loose, &DEFAULT_BUDGETS_MS, &Cost::TO_SOLUTION);
+        assert_eq!(full, "meets it: 1 s to the solution (segments=40)");
     }
 
     #[test]
