@@ -87,3 +87,40 @@ fn the_report_opens_with_verdicts() {
         assert!(!dir.exists(), "{bad:?} wrote {}", dir.display());
     }
 }
+
+/// Item 7, progress: with stderr not a terminal (a log file, CI), a batch
+/// prints one line per finished run with the time elapsed and left; a
+/// second run into the same folder weights the time left by the first
+/// report's run costs, so it has an estimate before any run finished.
+#[test]
+fn a_logged_batch_prints_a_line_per_run() {
+    let t = tempfile::tempdir().unwrap();
+    let cmp = t.path().join("p.toml");
+    std::fs::write(
+        &cmp,
+        "name = \"p\"\nmodels = [\"der\", \"needle\"]\n[[scenario]]\nid = \"cantilever-gravity\"\nquick_sweep = { segments = [5, 10] }\n",
+    )
+    .unwrap();
+    let out = t.path().join("r");
+    let (c, o) = (cmp.to_str().unwrap(), out.to_str().unwrap());
+    for pass in 0..2 {
+        let run = common::surgbench(&["run", c, "--quick", "--out", o]);
+        assert_eq!(run.status.code(), Some(0), "{}", text(&run));
+        let err = String::from_utf8_lossy(&run.stderr);
+        let lines: Vec<&str> = err.lines().filter(|l| l.starts_with('[')).collect();
+        // DER at 5 and 10 segments, and the needle's one unsupported line.
+        assert_eq!(lines.len(), 3, "{err}");
+        assert!(lines[0].starts_with("[1/3] cantilever-gravity / "), "{err}");
+        assert!(lines.iter().all(|l| l.contains(" elapsed, ETA ")), "{err}");
+        assert!(
+            lines
+                .iter()
+                .any(|l| l.contains("/ needle / ") && l.contains(": unsupported in ")),
+            "{err}"
+        );
+        if pass == 1 {
+            // Every run has a prior now: no line is without an estimate.
+            assert!(!err.contains("ETA unknown"), "{err}");
+        }
+    }
+}

@@ -615,7 +615,13 @@ pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultR
         let mut progress = crate::progress::Progress::new(prior, opts.quiet);
         let mut rows = Vec::with_capacity(jobs.len());
         for (i, job) in jobs.iter().enumerate() {
-            let what = format!("{} / {} / {}", job.scenario, job.model, job.fidelity);
+            let fid = job.fidelity.to_string();
+            let what = format!(
+                "{} / {} / {}",
+                job.scenario,
+                job.model,
+                if fid.is_empty() { "(default)" } else { fid.as_str() }
+            );
             progress.start(&what);
             let t0 = Instant::now();
             let row = run_job(c, job, &runs, opts, repeats, timeout)?;

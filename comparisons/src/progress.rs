@@ -92,9 +92,13 @@ impl Eta {
     }
 }
 
-/// `secs` as a person reads a wait: `45 s`, `3 min 05 s`, `1 h 02 min`.
+/// `secs` as a person reads a wait: `0.4 s`, `45 s`, `3 min 05 s`, `1 h 02 min`.
 pub fn human_duration(secs: f64) -> String {
-    let s = secs.max(0.0).round() as u64;
+    let secs = secs.max(0.0);
+    if secs < 9.95 {
+        return format!("{secs:.1} s");
+    }
+    let s = secs.round() as u64;
     match s {
         0..60 => format!("{s} s"),
         60..3600 => format!("{} min {:02} s", s / 60, s % 60),
@@ -214,7 +218,9 @@ mod tests {
         assert_eq!(human_duration(44.6), "45 s");
         assert_eq!(human_duration(185.0), "3 min 05 s");
         assert_eq!(human_duration(3720.0), "1 h 02 min");
-        assert_eq!(human_duration(-1.0), "0 s");
+        assert_eq!(human_duration(0.04), "0.0 s");
+        assert_eq!(human_duration(9.96), "10 s");
+        assert_eq!(human_duration(-1.0), "0.0 s");
     }
 
     #[test]
