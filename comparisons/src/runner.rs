@@ -19,6 +19,26 @@ use surgbench_reports::{End, FidelityValue, NodeState, Outcome, Status};
 /// before the load acts must not pass for one at equilibrium.
 const MIN_SETTLE_STEPS: usize = 10;
 
+/// The fastest a point on a rod's surface moves as its material frames turn
+/// from `prev` to `cur` over `dt` (m/s): per edge, the rotation angle of
+/// `prev^T cur` over `dt`, times the rod's radius (`radii`, scene order).
+/// A rod twisting in place moves no node, so node speeds alone would call
+/// it settled before its twist has spread. The angle is `atan2(|axial|,
+/// (tr - 1)/2)` of the relative rotation, accurate for small angles where
+/// `acos` of the trace loses half the digits.
+fn surface_spin_speed(prev: &Observation, cur: &Observation, dt: f64, radii: &[f64]) -> f64 {
+    let mut fastest: f64 = 0.0;
+    for ((p, c), r) in prev.rods.iter().zip(&cur.rods).zip(radii) {
+        for (fp, fc) in p.frames.iter().zip(&c.frames) {
+            let m = fp.transpose() * fc;
+            let axial = Vec3::new(m[(2, 1)] - m[(1, 2)], m[(0, 2)] - m[(2, 0)], m[(1, 0)] - m[(0, 1)]);
+            let angle = (0.5 * axial.norm()).atan2(0.5 * (m.trace() - 1.0));
+            fastest = fastest.max(angle.abs() / dt * r);
+        }
+    }
+    fastest
+}
+
 /// Most model steps one run (or one haptic loop) may take: 1e8. A run's
 /// buffers grow with its steps (12 bytes a step for the timing and solver
 /// iteration records, so at most about 1.2 GB here, 2.4 GB while a vector
@@ -319,6 +339,11 @@ fn run_repeat(
     if record {
         rep.series.push(sample(&rep.last, scorer.as_ref(), primary));
     }
+    // The widest section of each rod: its surface moves fastest as it turns.
+    let radii: Vec<f64> = scene
+        .rods()
+        .map(|r| r.sections.iter().map(|s| s.radius).fold(0.0, f64::max))
+        .collect();
     for k in 0..max_steps {
         let t = (k + 1) as f64 * dt;
         let cmd = scene.control.command_at(t);
@@ -350,9 +375,12 @@ fn run_repeat(
             rep.last = obs;
             break;
         }
-        let settled = scene
-            .settle
-            .is_some_and(|s| k + 1 >= MIN_SETTLE_STEPS && t >= s.min_time && obs.max_speed() < s.velocity_tol);
+        let settled = scene.settle.is_some_and(|s| {
+            k + 1 >= MIN_SETTLE_STEPS
+                && t >= s.min_time
+                && obs.max_speed() < s.velocity_tol
+                && surface_spin_speed(&rep.last, &obs, dt, &radii) < s.velocity_tol
+        });
         if record && (k % every == every - 1 || settled || k + 1 == max_steps) {
             rep.series.push(sample(&obs, scorer.as_ref(), primary));
         }

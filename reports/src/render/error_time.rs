@@ -2,6 +2,7 @@
 
 use std::path::Path;
 
+use super::pareto::Cost;
 use super::{Group, PLOT_SIZE, Section, Styles, or_unknown, run_label};
 use crate::analysis::best_ok;
 use crate::figure::{Axis, Figure, LegendEntry, Line, Panel, SeriesSpec};
@@ -9,7 +10,20 @@ use crate::read_series;
 
 /// Error over time from `observables.csv` of each model's best ok run
 /// ([`best_ok`]: most accurate, then fastest).
+///
+/// Not for a static scene ([`Cost::of_group`]): it is scored at equilibrium
+/// only, and its error over time would draw the load ramp, not accuracy.
 pub(super) fn error_time_figure(dir: &Path, g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figure, String)> {
+    if Cost::of_group(g).is_static {
+        sec.notes.push(
+            "No error-over-time plot: a static scene is scored at equilibrium only (its error during the load ramp is not an accuracy)."
+                .into(),
+        );
+        return None;
+    }
+    if g.is_outcome() {
+        return None;
+    }
     let mut series = Vec::new();
     let mut legend = Vec::new();
     for model in &g.models {

@@ -229,7 +229,18 @@ impl Group<'_> {
     fn metric_label(&self) -> String {
         metric_label(&self.metric)
     }
+    /// Whether the scene scores an outcome (its runs report `success`, 1 or
+    /// 0, as `branch-selection` does): a rate and a time, not an error on a
+    /// log axis. Its page gives a table ([`tables`]), not error plots.
+    fn is_outcome(&self) -> bool {
+        self.rows.iter().any(|r| r.metrics.contains_key(OUTCOME_METRIC))
+    }
 }
+
+/// The metric of an outcome scene: 1 when the run reached its goal, else 0.
+const OUTCOME_METRIC: &str = "success";
+/// The time an outcome scene's run took to reach its goal (s).
+const OUTCOME_TIME: &str = "time_to_target_s";
 
 /// What the page says about one group besides its table.
 #[derive(Default)]

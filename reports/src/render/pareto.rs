@@ -229,6 +229,13 @@ pub(super) fn pareto_figure(g: &Group, st: &Styles, info: &RunInfo, sec: &mut Se
             .push("No speed/error plot: no row names a primary error metric.".into());
         return None;
     }
+    if g.is_outcome() {
+        sec.notes.push(
+            "No speed/error plot: the scene scores an outcome (reached or not), read from its outcome table, not an error on a log axis."
+                .into(),
+        );
+        return None;
+    }
     let cost = Cost::of_group(g);
     let mut omitted = Omitted::default();
     let (mut series, mut legend) = model_series(g, st, &cost, &mut omitted);

@@ -399,6 +399,77 @@ fn vibration_table(g: &Group) -> Option<Block> {
     Some(Block::Table { header, rows })
 }
 
+/// An outcome scene's table ([`Group::is_outcome`]): per model, how many of
+/// its ok runs reached the goal and how long they took (median and range
+/// over those that did), with the median ms/step.
+fn outcome_table(g: &Group) -> Option<Block> {
+    if !g.is_outcome() {
+        return None;
+    }
+    let header = [
+        "model",
+        "ok runs reaching the goal",
+        "time to the goal [s]: median (min – max)",
+        "ms/step median (median over runs)",
+    ]
+    .map(String::from)
+    .to_vec();
+    let median = |mut v: Vec<f64>| -> Option<f64> {
+        v.retain(|x| x.is_finite());
+        if v.is_empty() {
+            return None;
+        }
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        Some(if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            0.5 * (v[n / 2 - 1] + v[n / 2])
+        })
+    };
+    let mut rows = Vec::new();
+    for m in &g.models {
+        let ok: Vec<&ResultRow> = g.model_rows(m).into_iter().filter(|r| r.status == Status::Ok).collect();
+        if ok.is_empty() {
+            continue;
+        }
+        let reached: Vec<&ResultRow> = ok
+            .iter()
+            .copied()
+            .filter(|r| r.metrics.get(super::OUTCOME_METRIC) == Some(&1.0))
+            .collect();
+        let times: Vec<f64> = reached
+            .iter()
+            .filter_map(|r| r.metrics.get(super::OUTCOME_TIME).copied())
+            .collect();
+        let time = match median(times.clone()) {
+            Some(t) => {
+                let lo = times.iter().copied().fold(f64::INFINITY, f64::min);
+                let hi = times.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                format!("{} ({} – {})", fmt_sig(t, 3), fmt_sig(lo, 3), fmt_sig(hi, 3))
+            }
+            None => "—".into(),
+        };
+        rows.push(vec![
+            Cell::plain(m),
+            Cell {
+                text: format!(
+                    "{} of {} ({:.0} %)",
+                    reached.len(),
+                    ok.len(),
+                    100.0 * reached.len() as f64 / ok.len() as f64
+                ),
+                bold: reached.len() == ok.len(),
+                warn: reached.len() < ok.len(),
+                ..Cell::default()
+            },
+            Cell::plain(time),
+            Cell::plain(num(median(ok.iter().filter_map(|r| r.ms_per_step_median).collect()))),
+        ]);
+    }
+    Some(Block::Table { header, rows })
+}
+
 fn scenario_section(g: &Group, sec: &Section, st: &Styles, info: &RunInfo) -> Vec<Block> {
     let mut b = Vec::new();
     b.push(Block::Anchored(2, format!("Scenario: {}", g.title), section_id(g)));
@@ -415,6 +486,10 @@ fn scenario_section(g: &Group, sec: &Section, st: &Styles, info: &RunInfo) -> Ve
         b.push(Block::List(g.metric_notes.clone()));
     }
     b.push(Block::List(model_lines(g, st, info)));
+    if let Some(t) = outcome_table(g) {
+        b.push(Block::Heading(3, "Outcome per model (ok runs)".into()));
+        b.push(t);
+    }
     b.push(scenario_table(g, st));
     if let Some(t) = vibration_table(g) {
         b.push(Block::Heading(3, "Period and damping (ok runs)".into()));
@@ -494,7 +569,11 @@ pub(super) fn page(
     )));
     b.push(Block::Toc(Vec::new()));
     b.extend(super::verdicts::verdict_blocks(groups, st, info));
-    b.push(Block::Anchored(2, "Summary: each model's best ok run".into(), "summary".into()));
+    b.push(Block::Anchored(
+        2,
+        "Summary: each model's best ok run".into(),
+        "summary".into(),
+    ));
     b.push(Block::Para(
         "Each cell: the primary error and ms/step of the model's most accurate ok run in the scenario (the fastest of equally accurate ones) \
          and, after +, how many of the model's runs were not ok; — where the model did not run the scene. Each scenario's section names \

@@ -61,7 +61,7 @@ const SETTLE: ParamSpec = p(
     1e-8,
     "m/s",
     Range::Positive,
-    "static equilibrium when every node is slower than this",
+    "static equilibrium when every node, and every point of the rod's surface as its frames turn, is slower than this",
 );
 const DURATION: ParamSpec = p(
     "duration",

@@ -1,5 +1,6 @@
-//! `torque-transfer`: a straight rod whose clamp turns about its axis; the
-//! tip's twist must follow (closed form: uniform static twist).
+//! `torque-transfer`: a straight rod whose clamp turns about its axis with a
+//! dead torque at its tip; the tip's twist is the clamp's plus `T L/(GJ)`
+//! (closed form: uniform static twist).
 
 use super::{DENSITY, DURATION, LENGTH, POISSON, RADIUS, RodCase, SEGMENTS, SETTLE, YOUNG, rod_case};
 use crate::params;
@@ -14,7 +15,7 @@ use surgbench_core::{ControlTimeline, Family, Observation, Vec3};
 pub const TORQUE_TRANSFER: Declared<TorqueParams> = Declared {
     info: ScenarioInfo {
         id: "torque-transfer",
-        description: "straight rod, clamp rotated about its axis: the tip twist must follow",
+        description: "straight rod, clamp rotated about its axis and a torque at the tip: the tip twist is the clamp's plus T L/(GJ)",
         family: Family::Rod,
         reference: "closed form: uniform static twist, tip angle = base_twist + T L/(GJ)",
         primary_error: "twist_error_rad",
@@ -46,9 +47,14 @@ params! {
             Range::Any,
             "rotation of the clamp about the rod axis",
         ),
+        // Non-zero by default so that the twist tests the torsional
+        // stiffness: at the default rod (GJ/L = 0.0189 N m/rad) 0.01 N m
+        // adds T L/(GJ) = 0.53 rad to the clamp's pi/2, with T L/(EI) = 0.41.
+        // At T = 0 the tip only follows the clamp, which every frame
+        // transport does exactly (error 0, a headline that says nothing).
         tip_torque: ParamSpec::new(
             "tip_torque",
-            0.0,
+            0.01,
             "N m",
             Range::Any,
             "dead axial torque at the tip (twist rate T/(GJ)); keep |T| L/(EI) well under pi",
