@@ -98,8 +98,8 @@ impl ModelFactory for PbdRodFactory {
             // segment's spin explicitly: h^2 |T| / I_a turns it by at most a
             // tenth of a radian per substep, I_a = m r^2 / 2 its axial
             // inertia (torque-transfer, 0.01 N m on a 50-segment wire at
-            // dt = 1 ms: 264 substeps; measured 4 and 16 trip the energy
-            // watchdog, 264 settles at 5.3e-3 rad against a 0.0175 target).
+            // dt = 1 ms: 281 substeps; measured 4 and 16 trip the energy
+            // watchdog, 281 settles at 5.3e-3 rad against a 0.0175 target).
             let tmax = rod.tip_torque.norm();
             let mut ns = 4.0f64;
             if fmax > 0.0 {
