@@ -124,3 +124,44 @@ fn run_one_honours_parameter_overrides() {
     assert!(fs.starts_with("body,node,x0,y0,z0,x,y,z\n"));
     assert_eq!(fs.lines().count(), 1 + 42, "40 segments + ghost node + clamp node");
 }
+
+/// The elastica's shape goes with every cantilever run
+/// (`reference_centreline.csv`, 201 points from the clamp to the reference
+/// tip), and DER's final nodes lie on it: at 40 segments within twice the
+/// tip's distance from the reference tip (the shape error of a cantilever
+/// grows from the clamp to the tip, where it is largest).
+#[test]
+fn der_centreline_lies_on_the_elastica() {
+    let s = run("cantilever-gravity", "der", &[], &[("segments", 40.0)]);
+    let c = &s.reference_centreline;
+    assert_eq!(c.len(), 201);
+    assert_eq!(c[0], [0.0, 0.0, 0.0]);
+    let rt = s.reference_tip.unwrap();
+    let last = c[200];
+    assert!((0..3).all(|k| (last[k] - rt[k]).abs() < 1e-12), "{last:?} vs {rt:?}");
+    let tip = s.tip.unwrap();
+    let tip_off = ((tip[0] - rt[0]).powi(2) + (tip[2] - rt[2]).powi(2)).sqrt();
+    // Distance from a node to the reference polyline (its 200 chords).
+    let dist = |p: [f64; 3]| {
+        c.windows(2)
+            .map(|w| {
+                let (a, b) = (w[0], w[1]);
+                let ab = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+                let ap = [p[0] - a[0], p[1] - a[1], p[2] - a[2]];
+                let l2 = ab.iter().map(|v| v * v).sum::<f64>();
+                let t = (ap.iter().zip(&ab).map(|(u, v)| u * v).sum::<f64>() / l2).clamp(0.0, 1.0);
+                (0..3).map(|k| (ap[k] - t * ab[k]).powi(2)).sum::<f64>().sqrt()
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    let worst = s
+        .final_state
+        .iter()
+        .filter(|n| n.body == 0 && n.rest[0] >= 0.0)
+        .map(|n| dist(n.x))
+        .fold(0.0, f64::max);
+    assert!(
+        worst <= 2.0 * tip_off + 1e-12,
+        "node {worst:.3e} m off the elastica, tip {tip_off:.3e} m"
+    );
+}

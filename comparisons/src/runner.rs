@@ -495,6 +495,7 @@ pub fn run_checked(
     }
     s.series = rep.series;
     s.final_state = final_state(&rep.last);
+    s.reference_centreline = run.reference_centreline().to_vec();
     Ok(s)
 }
 

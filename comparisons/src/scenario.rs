@@ -327,6 +327,7 @@ pub struct ScenarioRun {
     length_scale: f64,
     penetration_limit: f64,
     reference_tip: Option<[f64; 3]>,
+    reference_centreline: Vec<[f64; 3]>,
     feed_limit: Option<FeedLimit>,
 }
 
@@ -343,6 +344,7 @@ impl ScenarioRun {
             length_scale,
             penetration_limit: f64::INFINITY,
             reference_tip: None,
+            reference_centreline: Vec::new(),
             feed_limit: None,
         }
     }
@@ -376,6 +378,18 @@ impl ScenarioRun {
     pub fn with_reference_tip(mut self, tip: [f64; 3]) -> Self {
         self.reference_tip = Some(tip);
         self
+    }
+    /// The reference shape of the (first) rod at the end of the run (m,
+    /// base to tip), which every run writes beside its final state and the
+    /// report draws the models' centrelines against.
+    pub fn with_reference_centreline(mut self, points: Vec<[f64; 3]>) -> Self {
+        self.reference_centreline = points;
+        self
+    }
+    /// The reference centreline ([`ScenarioRun::with_reference_centreline`]);
+    /// empty when the scenario has none.
+    pub fn reference_centreline(&self) -> &[[f64; 3]] {
+        &self.reference_centreline
     }
     /// The scene every model runs.
     pub fn scene(&self) -> &Scene {

@@ -600,3 +600,50 @@ pub fn read_series(path: &Path) -> Result<Series, ReportError> {
     }
     Ok(s)
 }
+
+/// Reads the numeric columns `names` of every row of a small CSV file (a
+/// run's `final_state.csv` or `reference_centreline.csv`), found by name;
+/// every named column must be present and numeric in every row.
+fn read_columns<const N: usize>(path: &Path, names: [&str; N]) -> Result<Vec<[f64; N]>, ReportError> {
+    let (mut rd, header) = open_csv(path)?;
+    let mut pos = [0usize; N];
+    for (k, name) in names.iter().enumerate() {
+        pos[k] = header
+            .iter()
+            .position(|h| h == *name)
+            .ok_or_else(|| ReportError::parse(path, 1, name, "missing required column"))?;
+    }
+    let mut out = Vec::new();
+    for rec in rd.records() {
+        let rec = rec.map_err(|e| ReportError::csv(path, e))?;
+        let line = rec.position().map(|p| p.line()).unwrap_or(0);
+        let mut row = [0.0; N];
+        for (k, name) in names.iter().enumerate() {
+            let cell = rec.get(pos[k]).unwrap_or("");
+            row[k] = parse_f64(cell)
+                .map_err(|m| ReportError::parse(path, line, name, m))?
+                .ok_or_else(|| ReportError::parse(path, line, name, "empty value"))?;
+        }
+        out.push(row);
+    }
+    Ok(out)
+}
+
+/// The final positions (m) of body `body`'s nodes in a run's
+/// `final_state.csv`, in node order.
+pub fn read_final_positions(path: &Path, body: usize) -> Result<Vec<[f64; 3]>, ReportError> {
+    let rows = read_columns(path, ["body", "node", "x", "y", "z"])?;
+    let mut nodes: Vec<(f64, [f64; 3])> = rows
+        .into_iter()
+        .filter(|r| r[0] == body as f64)
+        .map(|r| (r[1], [r[2], r[3], r[4]]))
+        .collect();
+    nodes.sort_by(|a, b| a.0.total_cmp(&b.0));
+    Ok(nodes.into_iter().map(|(_, x)| x).collect())
+}
+
+/// A run's `reference_centreline.csv` (`x,y,z` in m, base to tip): the
+/// reference shape of the rod at the end of the run.
+pub fn read_centreline(path: &Path) -> Result<Vec<[f64; 3]>, ReportError> {
+    read_columns(path, ["x", "y", "z"])
+}

@@ -312,6 +312,11 @@ pub struct RunSummary {
     /// Final node positions (not in `summary.json`; written to `final_state.csv`).
     #[serde(skip)]
     pub final_state: Vec<NodeState>,
+    /// The reference centreline of the rod at the end of the run (m, base to
+    /// tip; not in `summary.json`: written to `reference_centreline.csv`
+    /// when the scenario has one, e.g. a cantilever's elastica).
+    #[serde(skip)]
+    pub reference_centreline: Vec<[f64; 3]>,
 }
 
 impl Deref for RunSummary {
@@ -329,13 +334,26 @@ impl DerefMut for RunSummary {
 }
 
 impl RunSummary {
-    /// Writes `summary.json`, `observables.csv` and `final_state.csv` into
-    /// `dir` (which must exist).
+    /// Writes `summary.json`, `observables.csv`, `final_state.csv` and, when
+    /// the scenario has one, `reference_centreline.csv` into `dir` (which
+    /// must exist).
     pub fn write_files(&self, dir: &Path) -> std::io::Result<()> {
         let json = serde_json::to_string_pretty(self).map_err(std::io::Error::other)?;
         std::fs::write(dir.join("summary.json"), json + "\n")?;
         self.write_series(&dir.join("observables.csv"))?;
+        if !self.reference_centreline.is_empty() {
+            self.write_centreline(&dir.join("reference_centreline.csv"))?;
+        }
         self.write_final_state(&dir.join("final_state.csv"))
+    }
+
+    fn write_centreline(&self, path: &Path) -> std::io::Result<()> {
+        let mut f = BufWriter::new(File::create(path)?);
+        writeln!(f, "x,y,z")?;
+        for [x, y, z] in &self.reference_centreline {
+            writeln!(f, "{x:e},{y:e},{z:e}")?;
+        }
+        f.flush()
     }
 
     /// Reads a run's `summary.json` (the series and final state stay empty).

@@ -351,3 +351,44 @@ fn summary_shows_the_best_ok_run_and_counts_the_rest() {
         assert!(md.contains(needle), "report.md lacks {needle:?}:\n{md}");
     }
 }
+
+/// Rod models' final shapes are drawn in side and top view, against the
+/// reference centreline their runs wrote; a run folder without its final
+/// state gives a note, not a failure.
+#[test]
+fn rod_centrelines_are_drawn_against_the_reference() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let rows: Vec<_> = common::rows()
+        .into_iter()
+        .filter(|r| r.scenario == "cantilever-gravity")
+        .collect();
+    for r in rows.iter().filter(|r| r.status == Status::Ok) {
+        let d = dir.join(&r.run_dir);
+        fs::create_dir_all(&d).unwrap();
+        let mut state = String::from("body,node,x0,y0,z0,x,y,z\n");
+        let mut reference = String::from("x,y,z\n");
+        for k in 0..=10 {
+            let x = 0.01 * k as f64;
+            state.push_str(&format!("0,{k},{x},0,0,{x},0,{}\n", -0.1 * x * x));
+            reference.push_str(&format!("{x},0,{}\n", -0.11 * x * x));
+        }
+        fs::write(d.join("final_state.csv"), state).unwrap();
+        fs::write(d.join("reference_centreline.csv"), reference).unwrap();
+    }
+    render(dir, &rows, &common::info()).unwrap();
+    assert!(dir.join("plots/cantilever-gravity-centreline.svg").is_file());
+    let md = read(&dir.join("report.md"));
+    // Planar shapes: the side view only.
+    assert!(
+        md.contains("final rod centreline in side view (x–z), with the reference shape"),
+        "{md}"
+    );
+    // Without the final states: no plot, and the page says why per model.
+    for r in rows.iter().filter(|r| r.status == Status::Ok) {
+        fs::remove_file(dir.join(&r.run_dir).join("final_state.csv")).unwrap();
+    }
+    render(dir, &rows, &common::info()).unwrap();
+    assert!(!dir.join("plots/cantilever-gravity-centreline.svg").exists());
+    assert!(read(&dir.join("report.md")).contains("Centreline: no shape for der"));
+}

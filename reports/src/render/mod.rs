@@ -10,6 +10,7 @@ use crate::figure::{Line, Look, Marker, PALETTE, save};
 use crate::format::{fnv1a, slug};
 use crate::{ReportError, ResultRow, RunInfo, staging};
 
+mod centreline;
 mod convergence;
 mod error_time;
 mod pareto;
@@ -18,6 +19,7 @@ mod tables;
 mod tip_time;
 mod verdicts;
 
+use centreline::centreline_figure;
 use convergence::convergence_figure;
 use error_time::error_time_figure;
 use pareto::pareto_figure;
@@ -29,7 +31,7 @@ use tip_time::tip_time_figure;
 const PLOT_SIZE: (u32, u32) = (1100, 700);
 
 /// Renders the report for `rows` into `dir` (which normally already holds
-/// `results.csv`): `plots/<stem>-{pareto,convergence,error-time,tip-time,stability}.{svg,png}` (tip-time where the runs recorded a reference trajectory),
+/// `results.csv`): `plots/<stem>-{pareto,convergence,error-time,tip-time,centreline,stability}.{svg,png}` (tip-time where the runs recorded a reference trajectory, centreline for rod models),
 /// `report.md` and `index.html`. Returns every file written, plots first.
 ///
 /// `plots/` is owned by the renderer: stale `.svg`/`.png` files in it are
@@ -53,6 +55,7 @@ pub fn render(dir: &Path, rows: &[ResultRow], info: &RunInfo) -> Result<Vec<Path
             ("convergence", convergence_figure(g, &styles, &mut sec)),
             ("error-time", error_time_figure(dir, g, &styles, &mut sec)),
             ("tip-time", tip_time_figure(dir, g, &styles, &mut sec)),
+            ("centreline", centreline_figure(dir, g, &styles, &mut sec)),
             ("stability", stability_figure(g, &styles, &mut sec)),
         ];
         for (kind, fig) in figs {

@@ -69,11 +69,20 @@ impl Pointwise for CantileverRun {
 
 impl CantileverRun {
     /// The instance: energy scale the load's work over the length, the
-    /// elastica's tip as the reference tip.
+    /// elastica's tip as the reference tip and its shape, at 201 points, as
+    /// the reference centreline the report draws the models against.
     pub(super) fn into_run(self, scene: Scene) -> ScenarioRun {
         let (length, (x, z)) = (self.reference.length, self.reference.tip());
         let energy = self.load * length;
-        ScenarioRun::new(scene, self, energy, length).with_reference_tip([x, 0.0, z])
+        let shape = (0..=200)
+            .map(|k| {
+                let (x, z) = self.reference.at(length * k as f64 / 200.0);
+                [x, 0.0, z]
+            })
+            .collect();
+        ScenarioRun::new(scene, self, energy, length)
+            .with_reference_tip([x, 0.0, z])
+            .with_reference_centreline(shape)
     }
 }
 
