@@ -254,6 +254,15 @@ pub trait Scorer {
         let _ = t;
         None
     }
+    /// For scenes scored along a force history: the force the scene scores
+    /// at `obs` (N, as the scene defines it: the push on a needle, the load
+    /// on a whole indenter) and the reference's value there, which the
+    /// report plots over time; `None` (the default) for the other scenes,
+    /// and at steps where the reference has no value.
+    fn force_point(&self, obs: &Observation) -> Option<(f64, f64)> {
+        let _ = obs;
+        None
+    }
 }
 
 impl<F: Fn(&Observation) -> Metrics> Scorer for F {

@@ -252,3 +252,39 @@ fn fem_converges_to_hertz_at_order_three_halves() {
     // Level 2 measured 23.4 % (curve 22.7 %); 10 % margin.
     assert!(force[2] < 0.258 && curve[2] < 0.25, "{force:?} {curve:?}");
 }
+
+/// The run's series carries the force the scene scores and Hertz's value
+/// at the same steps (`force`, `ref_force` of `observables.csv`, the
+/// report's force-over-time plot): the scored force is the whole sphere's,
+/// four times the quarter's hand force, and at the end of the ramp the
+/// reference is the full-depth Hertz force, `F / force_ratio`.
+#[test]
+fn the_series_carries_the_scored_force_and_hertz() {
+    let sc = &SPHERE_INDENTATION;
+    let p = params(&[]);
+    let fid = level(0);
+    let inst = sc.instantiate_at(&p, &fid).unwrap();
+    let s = run_single(
+        sc,
+        &p,
+        &inst,
+        registry::model("fem").unwrap(),
+        &fid,
+        &RunOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(s.status, "ok", "{}", s.reason);
+    let scored: Vec<_> = s.series.iter().filter(|x| x.force[1].is_finite()).collect();
+    assert!(scored.len() > 10, "{} samples with a reference force", scored.len());
+    for x in &scored {
+        assert_eq!(x.force[0], 4.0 * x.hand_force[2], "t = {}", x.t);
+    }
+    let last = s.series.last().unwrap();
+    let want = last.force[0] / s.errors["force_ratio"];
+    // Two roundings apart (a ratio and its inverse).
+    assert!(
+        (last.force[1] - want).abs() <= 1e-12 * want,
+        "{} vs {want}",
+        last.force[1]
+    );
+}

@@ -96,7 +96,8 @@ impl RunResult {
     /// of `observables.csv` (`t` s, `tip_x` m, `hand_fx` N, `hand_tx` N m,
     /// `energy` J, `error`: the primary error, NaN where not scored;
     /// `ref_tip_x` m: the reference tip trajectory, NaN where the scenario's
-    /// reference is not one).
+    /// reference is not one; `force` and `ref_force` N: the force the scene
+    /// scores and the reference's value, NaN where it scores none).
     #[getter]
     fn observables<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         // One row per sample, in the column order of `observables.csv`
@@ -107,8 +108,10 @@ impl RunResult {
             .iter()
             .map(|x| {
                 let ([tx, ty, tz], [fx, fy, fz], [mx, my, mz]) = (x.tip, x.hand_force, x.hand_torque);
-                let [rx, ry, rz] = x.reference_tip;
-                [x.t, tx, ty, tz, fx, fy, fz, mx, my, mz, x.energy, x.error, rx, ry, rz]
+                let ([rx, ry, rz], [sf, rf]) = (x.reference_tip, x.force);
+                [
+                    x.t, tx, ty, tz, fx, fy, fz, mx, my, mz, x.energy, x.error, rx, ry, rz, sf, rf,
+                ]
             })
             .collect();
         let d = PyDict::new(py);

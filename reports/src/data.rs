@@ -482,7 +482,7 @@ pub fn read_run_info(path: &Path) -> Result<RunInfo, ReportError> {
 }
 
 /// The columns of a per-run `observables.csv`, in file order.
-pub const SERIES_COLUMNS: [&str; 15] = [
+pub const SERIES_COLUMNS: [&str; 17] = [
     "t",
     "tip_x",
     "tip_y",
@@ -498,6 +498,8 @@ pub const SERIES_COLUMNS: [&str; 15] = [
     "ref_tip_x",
     "ref_tip_y",
     "ref_tip_z",
+    "force",
+    "ref_force",
 ];
 
 /// One run's time series (`<run_dir>/observables.csv`), SI units.
@@ -537,6 +539,12 @@ pub struct Series {
     pub ref_tip_y: Vec<f64>,
     /// The reference's tip position (m).
     pub ref_tip_z: Vec<f64>,
+    /// The force the scene scores (N, as the scene defines it: the push on
+    /// a needle, the load on a whole indenter), where the scene is scored
+    /// along a force history (NaN elsewhere).
+    pub force: Vec<f64>,
+    /// The reference's value of that force at this step (N).
+    pub ref_force: Vec<f64>,
 }
 
 impl Series {
@@ -556,7 +564,9 @@ impl Series {
             11 => &mut self.error,
             12 => &mut self.ref_tip_x,
             13 => &mut self.ref_tip_y,
-            _ => &mut self.ref_tip_z,
+            14 => &mut self.ref_tip_z,
+            15 => &mut self.force,
+            _ => &mut self.ref_force,
         }
     }
 }

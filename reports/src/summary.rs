@@ -236,6 +236,9 @@ pub struct Sample {
     /// The reference's tip position at this time (m; NaN where the
     /// scenario's reference is not a trajectory).
     pub reference_tip: [f64; 3],
+    /// The force the scene scores and the reference's value of it (N; NaN
+    /// where the scene is not scored along a force history).
+    pub force: [f64; 2],
 }
 
 /// One node of a run's final state (a row of `final_state.csv`).
@@ -380,9 +383,12 @@ impl RunSummary {
             let [rx, ry, rz] = x
                 .reference_tip
                 .map(|v| if v.is_finite() { format!("{v:e}") } else { String::new() });
+            let [sf, rf] = x
+                .force
+                .map(|v| if v.is_finite() { format!("{v:e}") } else { String::new() });
             writeln!(
                 f,
-                "{:e},{tx:e},{ty:e},{tz:e},{fx:e},{fy:e},{fz:e},{mx:e},{my:e},{mz:e},{:e},{err},{rx},{ry},{rz}",
+                "{:e},{tx:e},{ty:e},{tz:e},{fx:e},{fy:e},{fz:e},{mx:e},{my:e},{mz:e},{:e},{err},{rx},{ry},{rz},{sf},{rf}",
                 x.t, x.energy
             )?;
         }

@@ -392,3 +392,28 @@ fn rod_centrelines_are_drawn_against_the_reference() {
     assert!(!dir.join("plots/cantilever-gravity-centreline.svg").exists());
     assert!(read(&dir.join("report.md")).contains("Centreline: no shape for der"));
 }
+
+/// A run whose series records the scored force and its reference gets the
+/// force-over-time plot; runs without those columns get none.
+#[test]
+fn force_over_time_is_drawn_where_the_series_has_a_reference_force() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let rows = common::rows();
+    common::write_series(dir, &rows);
+    render(dir, &rows, &common::info()).unwrap();
+    assert!(!dir.join("plots/cantilever-gravity-force-time.svg").exists());
+    for r in rows.iter().filter(|r| r.status == Status::Ok && !r.run_dir.is_empty()) {
+        let d = dir.join(&r.run_dir);
+        fs::create_dir_all(&d).unwrap();
+        let mut text = String::from("t,error,force,ref_force\n");
+        for i in 0..=50 {
+            let t = i as f64 * 0.01;
+            text.push_str(&format!("{t},1e-3,{},{}\n", 2.0 * t * 1.01, 2.0 * t));
+        }
+        fs::write(d.join("observables.csv"), text).unwrap();
+    }
+    render(dir, &rows, &common::info()).unwrap();
+    assert!(dir.join("plots/cantilever-gravity-force-time.svg").is_file());
+    assert!(read(&dir.join("report.md")).contains("best ok run is scored on, over simulated time"));
+}

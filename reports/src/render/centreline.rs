@@ -7,8 +7,7 @@ use std::path::Path;
 
 use plotters::style::BLACK;
 
-use super::{Group, PLOT_SIZE, Section, Styles, run_label};
-use crate::analysis::best_ok;
+use super::{Group, PLOT_SIZE, Section, Styles, best_ok_runs, run_label};
 use crate::figure::{Axis, Figure, LegendEntry, Line, Look, Panel, SeriesSpec};
 use crate::{read_centreline, read_final_positions};
 
@@ -25,17 +24,13 @@ fn project(p: &[[f64; 3]], (a, b): (usize, usize)) -> Vec<(f64, f64)> {
 }
 
 /// The final centreline of the first rod of each model's best ok run
-/// ([`best_ok`]) in two projections, with the reference centreline
+/// ([`best_ok_runs`]) in two projections, with the reference centreline
 /// (`reference_centreline.csv`, dashed black) when the runs wrote one;
 /// `None` for groups without rod models.
 pub(super) fn centreline_figure(dir: &Path, g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figure, String)> {
     let mut reference: Option<Vec<[f64; 3]>> = None;
     let mut curves = Vec::new();
-    for model in &g.models {
-        let rows = g.model_rows(model);
-        let Some(r) = best_ok(&rows, |r| g.err(r)) else {
-            continue;
-        };
+    for r in best_ok_runs(g) {
         if r.family != "rod" || r.run_dir.trim().is_empty() {
             continue;
         }

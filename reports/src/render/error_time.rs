@@ -3,13 +3,12 @@
 use std::path::Path;
 
 use super::pareto::Cost;
-use super::{Group, PLOT_SIZE, Section, Styles, or_unknown, run_label};
-use crate::analysis::best_ok;
-use crate::figure::{Axis, Figure, LegendEntry, Line, Panel, SeriesSpec};
+use super::{Group, Section, Styles, best_ok_runs, or_unknown, over_time, run_label};
+use crate::figure::{Axis, Figure, LegendEntry, Line, SeriesSpec};
 use crate::read_series;
 
 /// Error over time from `observables.csv` of each model's best ok run
-/// ([`best_ok`]: most accurate, then fastest).
+/// ([`best_ok_runs`]: most accurate, then fastest).
 ///
 /// Not for a static scene ([`Cost::of_group`]): it is scored at equilibrium
 /// only, and its error over time would draw the load ramp, not accuracy.
@@ -26,11 +25,8 @@ pub(super) fn error_time_figure(dir: &Path, g: &Group, st: &Styles, sec: &mut Se
     }
     let mut series = Vec::new();
     let mut legend = Vec::new();
-    for model in &g.models {
-        let rows = g.model_rows(model);
-        let Some(r) = best_ok(&rows, |r| g.err(r)) else {
-            continue;
-        };
+    for r in best_ok_runs(g) {
+        let model = r.model.as_str();
         if r.run_dir.trim().is_empty() {
             sec.notes.push(format!(
                 "Error over time: {} has no run folder, so no time series.",
@@ -87,17 +83,12 @@ pub(super) fn error_time_figure(dir: &Path, g: &Group, st: &Styles, sec: &mut Se
     if series.is_empty() {
         return None;
     }
-    let fig = Figure {
-        title: format!("{}: {} over time (best ok run)", g.title, or_unknown(&g.metric)),
-        panels: vec![Panel {
-            title: String::new(),
-            x: Axis::linear("simulated time t [s]"),
-            y: Axis::log(format!("{} (log)", g.metric_label())),
-            series,
-        }],
+    let fig = over_time(
+        format!("{}: {} over time (best ok run)", g.title, or_unknown(&g.metric)),
+        Axis::log(format!("{} (log)", g.metric_label())),
+        series,
         legend,
-        size: PLOT_SIZE,
-    };
+    );
     let alt = format!("{}: error over simulated time for each model's best ok run", g.title);
     Some((fig, alt))
 }

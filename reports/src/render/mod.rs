@@ -13,6 +13,7 @@ use crate::{ReportError, ResultRow, RunInfo, staging};
 mod centreline;
 mod convergence;
 mod error_time;
+mod force_time;
 mod pareto;
 mod stability;
 mod tables;
@@ -22,6 +23,7 @@ mod verdicts;
 use centreline::centreline_figure;
 use convergence::convergence_figure;
 use error_time::error_time_figure;
+use force_time::force_time_figure;
 use pareto::pareto_figure;
 use stability::stability_figure;
 use tables::page;
@@ -31,7 +33,7 @@ use tip_time::tip_time_figure;
 const PLOT_SIZE: (u32, u32) = (1100, 700);
 
 /// Renders the report for `rows` into `dir` (which normally already holds
-/// `results.csv`): `plots/<stem>-{pareto,convergence,error-time,tip-time,centreline,stability}.{svg,png}` (tip-time where the runs recorded a reference trajectory, centreline for rod models),
+/// `results.csv`): `plots/<stem>-{pareto,convergence,error-time,tip-time,centreline,force-time,stability}.{svg,png}` (tip-time where the runs recorded a reference trajectory, centreline for rod models, force-time where they recorded a reference force),
 /// `report.md` and `index.html`. Returns every file written, plots first.
 ///
 /// `plots/` is owned by the renderer: stale `.svg`/`.png` files in it are
@@ -56,6 +58,7 @@ pub fn render(dir: &Path, rows: &[ResultRow], info: &RunInfo) -> Result<Vec<Path
             ("error-time", error_time_figure(dir, g, &styles, &mut sec)),
             ("tip-time", tip_time_figure(dir, g, &styles, &mut sec)),
             ("centreline", centreline_figure(dir, g, &styles, &mut sec)),
+            ("force-time", force_time_figure(dir, g, &styles, &mut sec)),
             ("stability", stability_figure(g, &styles, &mut sec)),
         ];
         for (kind, fig) in figs {
@@ -292,6 +295,36 @@ fn run_label(r: &ResultRow) -> String {
         r.model.clone()
     } else {
         format!("{} {}", r.model, crate::short_settings(&r.fidelity))
+    }
+}
+
+/// Each model's best ok run in the group ([`best_ok`]: most accurate, then
+/// fastest), in style order: the runs the summary and the over-time plots
+/// show.
+fn best_ok_runs<'a>(g: &'a Group<'a>) -> Vec<&'a ResultRow> {
+    g.models
+        .iter()
+        .filter_map(|m| crate::analysis::best_ok(&g.model_rows(m), |r| g.err(r)))
+        .collect()
+}
+
+/// A one-panel plot over simulated time (linear time axis).
+fn over_time(
+    title: String,
+    y: crate::figure::Axis,
+    series: Vec<crate::figure::SeriesSpec>,
+    legend: Vec<crate::figure::LegendEntry>,
+) -> crate::figure::Figure {
+    crate::figure::Figure {
+        title,
+        panels: vec![crate::figure::Panel {
+            title: String::new(),
+            x: crate::figure::Axis::linear("simulated time t [s]"),
+            y,
+            series,
+        }],
+        legend,
+        size: PLOT_SIZE,
     }
 }
 

@@ -7,8 +7,8 @@ use std::path::Path;
 
 use plotters::style::BLACK;
 
-use super::{Group, PLOT_SIZE, Section, Styles, run_label, usable};
-use crate::figure::{Axis, Figure, LegendEntry, Line, Look, Panel, SeriesSpec};
+use super::{Group, Section, Styles, over_time, run_label, usable};
+use crate::figure::{Axis, Figure, LegendEntry, Line, Look, SeriesSpec};
 use crate::{Series, Status, read_series};
 
 /// Each model's ok run with the smallest primary error (the first on ties,
@@ -110,17 +110,12 @@ pub(super) fn tip_time_figure(dir: &Path, g: &Group, st: &Styles, sec: &mut Sect
             line_points: pts,
         });
     }
-    let fig = Figure {
-        title: format!("{}: tip {name} over time (most accurate ok run)", g.title),
-        panels: vec![Panel {
-            title: String::new(),
-            x: Axis::linear("simulated time t [s]"),
-            y: Axis::linear(format!("tip {name} [m]")),
-            series,
-        }],
+    let fig = over_time(
+        format!("{}: tip {name} over time (most accurate ok run)", g.title),
+        Axis::linear(format!("tip {name} [m]")),
+        series,
         legend,
-        size: PLOT_SIZE,
-    };
+    );
     let alt = format!(
         "{}: tip {name} over simulated time for each model's most accurate ok run, with the reference (dashed)",
         g.title

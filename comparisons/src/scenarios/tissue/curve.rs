@@ -56,4 +56,7 @@ impl<S: ForceCurve> Scorer for CurveScorer<'_, S> {
         }
         m
     }
+    fn force_point(&self, obs: &Observation) -> Option<(f64, f64)> {
+        self.run.curve_point(self.scene, obs)
+    }
 }

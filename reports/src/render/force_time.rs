@@ -1,0 +1,118 @@
+//! The force-over-time plot of a group whose scenario is scored along a
+//! force history (the `force` and `ref_force` columns of
+//! `observables.csv`: a needle's push against `f_cut + f_perlen d`, an
+//! indenter's load against Hertz or the scikit-fem curve): each model's
+//! best ok run against its reference.
+
+use std::path::Path;
+
+use super::{Group, Section, Styles, best_ok_runs, over_time, run_label};
+use crate::figure::{Axis, Figure, LegendEntry, Line, Look, SeriesSpec};
+use crate::read_series;
+
+/// The runs of consecutive finite samples of `v` over `t`: the reference
+/// holds in phases (a needle's insertion and its steady retraction, not
+/// the hold between), and a line must not bridge the phases.
+fn stretches(t: &[f64], v: &[f64]) -> Vec<Vec<(f64, f64)>> {
+    let mut out: Vec<Vec<(f64, f64)>> = Vec::new();
+    let mut open = false;
+    for (t, v) in t.iter().zip(v) {
+        if t.is_finite() && v.is_finite() {
+            if !open {
+                out.push(Vec::new());
+                open = true;
+            }
+            if let Some(last) = out.last_mut() {
+                last.push((*t, *v));
+            }
+        } else {
+            open = false;
+        }
+    }
+    out
+}
+
+/// The scored force of each model's best ok run ([`best_ok_runs`]) over time,
+/// solid, with the reference's value at the same steps, dashed in the same
+/// colour (a reference that depends on the run's own state, such as the
+/// needle's inserted length, differs from model to model). `None` when no
+/// run recorded a reference force. Unreadable series are noted by the
+/// error-over-time plot, which reads the same runs.
+pub(super) fn force_time_figure(dir: &Path, g: &Group, st: &Styles, _sec: &mut Section) -> Option<(Figure, String)> {
+    let mut series = Vec::new();
+    let mut legend = Vec::new();
+    for r in best_ok_runs(g) {
+        let model = r.model.as_str();
+        if r.run_dir.trim().is_empty() {
+            continue;
+        }
+        let Ok(s) = read_series(&dir.join(&r.run_dir).join("observables.csv")) else {
+            continue;
+        };
+        let (got, want) = (stretches(&s.t, &s.force), stretches(&s.t, &s.ref_force));
+        if want.is_empty() {
+            continue;
+        }
+        let look = st.look(model, 0, Line::Solid);
+        let dashed = Look {
+            marker: None,
+            line: Line::Dashed,
+            ..look
+        };
+        // About ten markers per curve so models stay apart in grey scale.
+        let step = (got.iter().map(Vec::len).sum::<usize>() / 10).max(1);
+        legend.push(LegendEntry {
+            look,
+            label: run_label(r),
+        });
+        legend.push(LegendEntry {
+            look: dashed,
+            label: format!("{model}: reference at its steps"),
+        });
+        for part in got {
+            series.push(SeriesSpec {
+                look,
+                points: part.iter().copied().step_by(step).collect(),
+                line_points: part,
+            });
+        }
+        for part in want {
+            series.push(SeriesSpec {
+                look: dashed,
+                points: Vec::new(),
+                line_points: part,
+            });
+        }
+    }
+    if series.is_empty() {
+        return None;
+    }
+    let fig = over_time(
+        format!(
+            "{}: scored force over time against the reference (best ok run)",
+            g.title
+        ),
+        Axis::linear("force [N]"),
+        series,
+        legend,
+    );
+    let alt = format!(
+        "{}: the force each model's best ok run is scored on, over simulated time, with the reference's value at the same steps (dashed; gaps where the reference does not hold)",
+        g.title
+    );
+    Some((fig, alt))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::stretches;
+
+    #[test]
+    fn lines_break_where_the_reference_does_not_hold() {
+        let nan = f64::NAN;
+        let t = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0];
+        let v = [nan, 1.0, 2.0, nan, nan, 5.0];
+        assert_eq!(stretches(&t, &v), vec![vec![(1.0, 1.0), (2.0, 2.0)], vec![(5.0, 5.0)]]);
+        assert!(stretches(&t, &[nan; 6]).is_empty());
+    }
+}
