@@ -99,6 +99,7 @@ fn scenario_table(g: &Group, st: &Styles) -> Block {
         "ms/step p95".into(),
         "real-time factor".into(),
         "solver iters mean / max".into(),
+        "peak RSS [MiB]".into(),
         "stable / watchdog".into(),
         "end".into(),
     ]);
@@ -160,6 +161,7 @@ fn scenario_table(g: &Group, st: &Styles) -> Block {
             Cell::plain(num(r.ms_per_step_p95)),
             Cell::plain(num(r.real_time_factor)),
             Cell::plain(iters),
+            Cell::plain(num(r.peak_rss_mb)),
             Cell::plain(stable_text(r, !is_ok)),
             Cell::plain(if r.end == End::Unset { "—" } else { r.end.as_str() }),
         ]);
@@ -584,7 +586,7 @@ pub(super) fn page(
 
     b.push(Block::Para(
         "In each scenario's table, the lowest error and the fastest ms/step among ok runs are bold; runs that are not ok show their \
-         reason in place of the error; each model links to its run's folder (runs/...: summary.json, observables.csv, \
+         reason in place of the error; peak RSS is the run's whole process (scene, reference and model, VmHWM); each model links to its run's folder (runs/...: summary.json, observables.csv, \
          final_state.csv). Tables round to 3 significant digits and settings to 4; results.csv holds every value at full \
          precision, and the command surgbench report DIR re-renders this page from results.csv (and summary.json)."
             .into(),
