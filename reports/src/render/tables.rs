@@ -183,93 +183,57 @@ fn not_ok_counts(rows: &[&ResultRow]) -> String {
         .join(", ")
 }
 
-/// A model's line in its scene section: its best ok run ([`best_ok`]: most
-/// accurate, then fastest) with its settings and how many of its runs were
-/// not ok; without an ok run, the counts and the finest run's reason.
-fn summary_text(g: &Group, st: &Styles, mr: &[&ResultRow]) -> Cell {
+/// A model's summary, in two forms from one choice of run: the cell of the
+/// summary matrix, short enough for six models side by side at 1400 px
+/// (the best ok run's error and ms/step, and how many runs were not ok),
+/// and its line in the scene's section, which adds the run's settings, or
+/// without an ok run the finest run's reason. The best ok run is
+/// [`best_ok`]'s: most accurate, then fastest.
+fn summary(g: &Group, st: &Styles, mr: &[&ResultRow]) -> (Cell, String) {
     if mr.is_empty() {
-        return Cell::plain("not run");
+        return (Cell::plain("—"), "not run".into());
     }
     let others = not_ok_counts(mr);
+    let warn = |text: String| Cell {
+        text,
+        warn: true,
+        ..Cell::default()
+    };
     match best_ok(mr, |r| g.err(r)) {
         Some(r) => {
-            let e = g
-                .err(r)
-                .map(|e| fmt_sig(e, 3))
-                .unwrap_or_else(|| "no error value".into());
+            let e = g.err(r).map_or("no error value".into(), |e| fmt_sig(e, 3));
+            let ms = num(r.ms_per_step_median);
             let on = if st.by_machine() {
                 format!(" on {}", or_unknown(&r.host))
             } else {
                 String::new()
             };
-            let also = if others.is_empty() {
-                String::new()
+            let (short_also, long_also) = if others.is_empty() {
+                (String::new(), String::new())
             } else {
-                format!("; also {others}")
+                (format!(" (+{others})"), format!("; also {others}"))
             };
-            Cell::plain(format!(
-                "{e} at {} ms/step{on} ({}{also})",
-                num(r.ms_per_step_median),
-                settings_label(r)
-            ))
+            (
+                Cell::plain(format!("{e} at {ms} ms{on}{short_also}")),
+                format!("best ok run {e} at {ms} ms/step{on} ({}{long_also})", settings_label(r)),
+            )
+        }
+        // A model that refuses the scene says why, once.
+        None if mr.iter().all(|r| r.status == Status::Unsupported) => {
+            let r = finest(mr.iter().copied()).expect("non-empty");
+            (warn("unsupported".into()), reason_text(r))
         }
         None => {
             let r = finest(mr.iter().copied()).expect("non-empty");
-            // A model that refuses the scene says why, once.
-            let text = if mr.iter().all(|r| r.status == Status::Unsupported) {
-                reason_text(r)
-            } else {
+            (
+                warn(format!("no ok run ({others})")),
                 format!(
                     "no ok run ({others}); finest: {} ({})",
                     reason_text(r),
                     settings_label(r)
-                )
-            };
-            Cell {
-                text,
-                warn: true,
-                ..Cell::default()
-            }
+                ),
+            )
         }
-    }
-}
-
-/// A model's cell in the summary matrix, short enough for six models side
-/// by side at 1400 px: the best ok run's error and ms/step and how many runs
-/// were not ok; settings and reasons are in the scene's section.
-fn summary_cell(g: &Group, st: &Styles, mr: &[&ResultRow]) -> Cell {
-    if mr.is_empty() {
-        return Cell::plain("—");
-    }
-    let others = not_ok_counts(mr);
-    let also = if others.is_empty() {
-        String::new()
-    } else {
-        format!(" (+{others})")
-    };
-    match best_ok(mr, |r| g.err(r)) {
-        Some(r) => {
-            let on = if st.by_machine() {
-                format!(" on {}", or_unknown(&r.host))
-            } else {
-                String::new()
-            };
-            Cell::plain(format!(
-                "{} at {} ms{on}{also}",
-                g.err(r).map_or("no error value".into(), |e| fmt_sig(e, 3)),
-                num(r.ms_per_step_median)
-            ))
-        }
-        None if mr.iter().all(|r| r.status == Status::Unsupported) => Cell {
-            text: "unsupported".into(),
-            warn: true,
-            ..Cell::default()
-        },
-        None => Cell {
-            text: format!("no ok run ({others})"),
-            warn: true,
-            ..Cell::default()
-        },
     }
 }
 
@@ -288,7 +252,7 @@ fn summary_table(groups: &[Group], st: &Styles) -> Block {
             Cell::plain(or_unknown(&g.metric)),
         ];
         for model in &st.models {
-            row.push(summary_cell(g, st, &g.model_rows(model)));
+            row.push(summary(g, st, &g.model_rows(model)).0);
         }
         rows.push(row);
     }
@@ -302,12 +266,7 @@ fn model_lines(g: &Group, st: &Styles, info: &RunInfo) -> Vec<String> {
         .iter()
         .map(|m| {
             let mr = g.model_rows(m);
-            let best = summary_text(g, st, &mr).text;
-            let best = if mr.iter().any(|r| r.status == Status::Ok) {
-                format!("best ok run {best}")
-            } else {
-                best
-            };
+            let best = summary(g, st, &mr).1;
             // An unsupported model's line already says so, with the reason.
             match super::verdicts::verdict_text(g, &mr, info) {
                 Some(v) if v != "unsupported" => format!("{m}: {best}; verdict: {v}"),
