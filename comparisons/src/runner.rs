@@ -305,10 +305,13 @@ impl Repeat {
 
 /// One point of the time series: tip, hand load, energy and primary error.
 fn sample(obs: &Observation, scorer: &dyn Scorer, primary: &str) -> Sample {
-    let tip = obs.rods.first().map(|r| r.tip()).unwrap_or_default();
+    let rod_tip = || {
+        let tip = obs.rods.first().map(|r| r.tip()).unwrap_or_default();
+        [tip.x, tip.y, tip.z]
+    };
     Sample {
         t: obs.time,
-        tip: [tip.x, tip.y, tip.z],
+        tip: scorer.tracked_point(obs).unwrap_or_else(rod_tip),
         hand_force: [obs.hand_force.x, obs.hand_force.y, obs.hand_force.z],
         hand_torque: [obs.hand_torque.x, obs.hand_torque.y, obs.hand_torque.z],
         energy: obs.energy.total(),

@@ -254,6 +254,14 @@ pub trait Scorer {
         let _ = t;
         None
     }
+    /// The point of the model a trajectory-scored scene without a rod
+    /// follows (a tissue's probe node, m), recorded as the run's tip so
+    /// that the report plots it against [`Scorer::reference_tip_at`];
+    /// `None` (the default): the first rod's tip.
+    fn tracked_point(&self, obs: &Observation) -> Option<[f64; 3]> {
+        let _ = obs;
+        None
+    }
     /// For scenes scored along a force history: the force the scene scores
     /// at `obs` (N, as the scene defines it: the push on a needle, the load
     /// on a whole indenter) and the reference's value there, which the

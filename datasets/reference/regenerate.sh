@@ -16,7 +16,7 @@ if [ ! -x "$venv/bin/python" ]; then
   "$venv/bin/pip" install --quiet --disable-pip-version-check -r "$here/requirements.txt"
 fi
 status=0
-for pair in "lame_tube.py:lame-tube" "block_compression.py:block-compression" "wall_punch.py:wall-punch" "wall_indentation.py:wall-indentation"; do
+for pair in "lame_tube.py:lame-tube" "block_compression.py:block-compression" "wall_punch.py:wall-punch" "wall_indentation.py:wall-indentation" "block_vibration.py:block-vibration"; do
   script="${pair%%:*}"; name="${pair##*:}"
   "$venv/bin/python" "$here/$script" "$tmp/$name"
   for csv in "$here/$name"/*.csv; do

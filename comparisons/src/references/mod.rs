@@ -13,6 +13,6 @@ pub mod trajectory;
 pub use capstan::capstan_ratio;
 pub use hertz::{hertz_contact_radius, hertz_force, sphere_force_exact};
 pub use lame::lame_radial_displacement;
-pub use scikit_fem::{BlockReference, PunchReference, WallProbe, WallReference};
+pub use scikit_fem::{BlockReference, PunchReference, VibrationReference, WallProbe, WallReference};
 pub use tables::read_csv_columns;
 pub use trajectory::{TipTrajectory, cached_reference};

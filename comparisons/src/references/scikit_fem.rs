@@ -6,6 +6,7 @@ use super::tables::{interpolate, meta_number, read_csv_columns, read_curve, read
 use crate::error::UsageError;
 use std::f64::consts::PI;
 use std::path::Path;
+use surgbench_core::Vec3;
 
 /// One profile probe of [`WallReference`]: `(line, coordinate, u_r (m))`,
 /// line 0 along z (m) at `theta = 0`, line 1 around theta (rad) at
@@ -290,5 +291,123 @@ impl PunchReference {
     /// outside the tabulated depths.
     pub fn force(&self, depth: f64, e: f64) -> Option<f64> {
         Some(interpolate(&self.curve, depth)? * e / self.youngs_modulus)
+    }
+}
+
+/// The scikit-fem free-vibration reference
+/// (`datasets/reference/block-vibration`): a box `[0, size]` clamped at
+/// `z = 0`, every other face free, linear elasticity, P2 tets, consistent
+/// mass: its first angular frequency and mode shape (a sway along x).
+#[derive(Debug, Clone, PartialEq)]
+pub struct VibrationReference {
+    /// Box size (m).
+    pub size: Vec3,
+    /// Young's modulus of the reference (Pa).
+    pub youngs_modulus: f64,
+    /// Poisson ratio of the reference.
+    pub poisson_ratio: f64,
+    /// Density of the reference (kg/m^3).
+    pub density: f64,
+    /// First angular frequency on the finest mesh (rad/s).
+    pub omega: f64,
+    /// Intervals of the mode's grid along x, y, z.
+    pub grid: [usize; 3],
+    /// The first mode at the grid nodes, x fastest, `phi_x = 1` at the top
+    /// centre (dimensionless).
+    pub mode: Vec<Vec3>,
+}
+
+impl VibrationReference {
+    /// Load from `<datasets>/reference/block-vibration/`.
+    pub fn load(datasets: &Path) -> Result<Self, UsageError> {
+        let dir = datasets.join("reference/block-vibration");
+        let (meta, meta_path) = read_meta(&dir)?;
+        let num = |k: &str| meta_number(&meta, &meta_path, k);
+        let count = |k: &str| -> Result<usize, UsageError> {
+            let v = num(k)?;
+            if v >= 1.0 && v.fract() == 0.0 {
+                Ok(v as usize)
+            } else {
+                Err(UsageError(format!(
+                    "{}: `{k}` must be a positive integer",
+                    meta_path.display()
+                )))
+            }
+        };
+        let grid = [count("grid_x")?, count("grid_y")?, count("grid_z")?];
+        let file = dir.join("frequencies.csv");
+        let omega = read_csv_columns(&file, &["k", "omega_1_rad_s"])?
+            .into_iter()
+            .max_by(|a, b| a[0].total_cmp(&b[0]))
+            .map(|r| r[1])
+            .ok_or_else(|| UsageError(format!("{}: no rows", file.display())))?;
+        let file = dir.join("mode.csv");
+        let mode: Vec<Vec3> = read_csv_columns(&file, &["phi_x", "phi_y", "phi_z"])?
+            .into_iter()
+            .map(|r| Vec3::new(r[0], r[1], r[2]))
+            .collect();
+        let nodes = grid.iter().map(|g| g + 1).product::<usize>();
+        if mode.len() != nodes {
+            return Err(UsageError(format!(
+                "{}: {} rows, the {}x{}x{} grid has {nodes} nodes",
+                file.display(),
+                mode.len(),
+                grid[0],
+                grid[1],
+                grid[2]
+            )));
+        }
+        Ok(Self {
+            size: Vec3::new(num("size_x")?, num("size_y")?, num("size_z")?),
+            youngs_modulus: num("youngs_modulus")?,
+            poisson_ratio: num("poisson_ratio")?,
+            density: num("density")?,
+            omega,
+            grid,
+            mode,
+        })
+    }
+
+    /// The first angular frequency (rad/s) at modulus `e` (Pa) and density
+    /// `rho` (kg/m^3): for linear elasticity at a fixed geometry and Poisson
+    /// ratio `K` scales with `E` and `M` with `rho`, so `omega^2` scales
+    /// with `E / rho`.
+    pub fn omega_at(&self, e: f64, rho: f64) -> f64 {
+        self.omega * ((e / self.youngs_modulus) * (self.density / rho)).sqrt()
+    }
+
+    /// The mode at `p` (m, inside the box): trilinear interpolation of the
+    /// grid, exact at its nodes (where every block mesh of the scene has
+    /// its nodes). `None` outside the box.
+    pub fn mode_at(&self, p: &Vec3) -> Option<Vec3> {
+        let mut cell = [0usize; 3];
+        let mut frac = [0.0; 3];
+        for a in 0..3 {
+            let s = p[a] / self.size[a] * self.grid[a] as f64;
+            let tol = 1e-9 * self.grid[a] as f64;
+            if !(s >= -tol && s <= self.grid[a] as f64 + tol) {
+                return None;
+            }
+            let s = s.clamp(0.0, self.grid[a] as f64);
+            let nearest = s.round();
+            // A node within round-off of the grid is the node itself.
+            let s = if (s - nearest).abs() < tol { nearest } else { s };
+            let i = (s.floor() as usize).min(self.grid[a] - 1);
+            cell[a] = i;
+            frac[a] = s - i as f64;
+        }
+        let (nx, ny) = (self.grid[0] + 1, self.grid[1] + 1);
+        let mut v = Vec3::zeros();
+        for corner in 0..8 {
+            let d = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
+            let w: f64 = (0..3)
+                .map(|a| if d[a] == 1 { frac[a] } else { 1.0 - frac[a] })
+                .product();
+            if w != 0.0 {
+                let idx = (cell[0] + d[0]) + nx * ((cell[1] + d[1]) + ny * (cell[2] + d[2]));
+                v += self.mode[idx] * w;
+            }
+        }
+        Some(v)
     }
 }

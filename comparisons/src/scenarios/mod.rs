@@ -3,6 +3,7 @@
 //! its parameters (a `params!` struct) and its scorer.
 
 pub mod needle;
+pub mod oscillation;
 pub mod pair;
 pub mod rod;
 pub mod tissue;

@@ -51,8 +51,8 @@ pub enum Capability {
     RestCurvature,
     /// Wire fed in or pulled back at the base.
     Insertion,
-    /// A rod started with a velocity field (`RodBody::initial_velocity`):
-    /// free vibration needs momentum.
+    /// A body started moving (`RodBody::initial_velocity`,
+    /// `TissueBody::initial_velocity`): free vibration needs momentum.
     InitialVelocity,
     /// 3D deformable solid.
     Tissue,

@@ -57,6 +57,12 @@ pub struct TissueBody {
     /// bounded by this surface) as the body deforms; needs
     /// [`Capability::SurfaceForces`].
     pub contact_surface: Vec<[usize; 3]>,
+    /// Velocity of every mesh node at `t = 0` (m/s), in mesh order; empty
+    /// = at rest. Free vibration needs momentum; held components (fixed,
+    /// driven, rolled) start still whatever is given here
+    /// ([`TissueBody::start_velocities`]). Needs
+    /// [`Capability::InitialVelocity`].
+    pub initial_velocity: Vec<Vec3>,
 }
 
 /// A rigid sphere in frictionless, unilateral contact with a tissue body:
@@ -110,7 +116,36 @@ impl TissueBody {
             pressure_faces: Vec::new(),
             indenter: None,
             contact_surface: Vec::new(),
+            initial_velocity: Vec::new(),
         }
+    }
+
+    /// The velocity every node starts with (m/s): [`TissueBody::initial_velocity`]
+    /// (zeros when empty) with the held components set to zero, so that a
+    /// model starts consistent with its boundary conditions.
+    pub fn start_velocities(&self) -> Vec<Vec3> {
+        let n = self.mesh.nodes.len();
+        let mut v = if self.initial_velocity.len() == n {
+            self.initial_velocity.clone()
+        } else {
+            vec![Vec3::zeros(); n]
+        };
+        for i in self
+            .fixed_nodes
+            .iter()
+            .copied()
+            .chain(self.driven_nodes.iter().map(|d| d.0))
+        {
+            v[i] = Vec3::zeros();
+        }
+        for &(i, axes) in &self.partial_fixed {
+            for k in 0..3 {
+                if axes[k] {
+                    v[i][k] = 0.0;
+                }
+            }
+        }
+        v
     }
 
     /// The nodes of [`TissueBody::contact_surface`], ascending: the order of
@@ -416,6 +451,9 @@ impl Scene {
                     if !t.contact_surface.is_empty() {
                         c.push(Capability::SurfaceForces);
                     }
+                    if !t.initial_velocity.is_empty() {
+                        c.push(Capability::InitialVelocity);
+                    }
                 }
             }
         }
@@ -475,6 +513,15 @@ impl Scene {
                     }
                     if let Some(ind) = &t.indenter {
                         ind.validate()?;
+                    }
+                    let nv = t.initial_velocity.len();
+                    if nv != 0 && nv != n {
+                        return Err(format!(
+                            "tissue initial velocity has {nv} entries but the mesh has {n} nodes (give one per node, or none)"
+                        ));
+                    }
+                    if !t.initial_velocity.iter().all(|v| v.iter().all(|c| c.is_finite())) {
+                        return Err("tissue initial velocity must be finite".into());
                     }
                     let m = &t.material;
                     let ok =
@@ -538,6 +585,9 @@ impl Scene {
                     for (_, d) in &mut t.driven_nodes {
                         *d = rot * *d;
                     }
+                    for v in &mut t.initial_velocity {
+                        *v = rot * *v;
+                    }
                     if let Some(ind) = &mut t.indenter {
                         ind.centre = iso.transform_point(&ind.centre.into()).coords;
                         ind.travel = rot * ind.travel;
@@ -567,5 +617,61 @@ impl Scene {
             s.environment.vessel_motion = Some(Arc::new(TransformedMotion::new(m.clone(), *iso)));
         }
         s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh;
+
+    fn block() -> TissueBody {
+        let m = mesh::block(Vec3::new(1.0, 1.0, 1.0), [1, 1, 1]);
+        let mut b = TissueBody::new(
+            m,
+            SolidMaterial {
+                youngs_modulus: 1e3,
+                poisson_ratio: 0.3,
+                density: 1e3,
+            },
+        );
+        b.fixed_nodes = mesh::nodes_on_plane(&b.mesh, 2, 0.0, 1e-9);
+        b.partial_fixed = vec![(b.mesh.nodes.len() - 1, [true, false, false])];
+        b
+    }
+
+    /// A tissue's initial velocity: one per node or none, finite; the
+    /// capability is asked for only when given; held components start still.
+    #[test]
+    fn tissue_initial_velocity_is_checked_and_respects_the_holds() {
+        let mut s = Scene::empty("v");
+        let mut b = block();
+        let n = b.mesh.nodes.len();
+        assert_eq!(b.start_velocities(), vec![Vec3::zeros(); n]);
+        b.initial_velocity = vec![Vec3::new(1.0, 2.0, 3.0); n];
+        let v = b.start_velocities();
+        for i in 0..n {
+            let want = if b.fixed_nodes.contains(&i) {
+                Vec3::zeros()
+            } else if i == n - 1 {
+                Vec3::new(0.0, 2.0, 3.0)
+            } else {
+                Vec3::new(1.0, 2.0, 3.0)
+            };
+            assert_eq!(v[i], want, "node {i}");
+        }
+        s.bodies.push(Body::Tissue(b.clone()));
+        s.validate().unwrap();
+        assert!(s.required_capabilities().contains(&Capability::InitialVelocity));
+        let mut short = b.clone();
+        short.initial_velocity.pop();
+        s.bodies = vec![Body::Tissue(short)];
+        assert!(s.validate().unwrap_err().contains("one per node"));
+        let mut nan = b;
+        nan.initial_velocity[0].x = f64::NAN;
+        s.bodies = vec![Body::Tissue(nan)];
+        assert!(s.validate().unwrap_err().contains("finite"));
+        s.bodies = vec![Body::Tissue(block())];
+        assert!(!s.required_capabilities().contains(&Capability::InitialVelocity));
     }
 }

@@ -149,6 +149,7 @@ impl ModelFactory for FemFactory {
             Capability::RollerConstraint,
             Capability::TissueContact,
             Capability::SurfaceForces,
+            Capability::InitialVelocity,
         ]
     }
     fn fidelity_keys(&self) -> &'static [FidelityKey] {

@@ -24,6 +24,7 @@ fn body() -> TissueBody {
             travel: Vec3::new(0.0, 0.0, -2e-4),
         }),
         contact_surface: vec![],
+        initial_velocity: vec![],
         mesh: m,
         material: tissue(0.3),
     }

@@ -29,6 +29,7 @@ fn block_body(n: usize, squash: f64) -> TissueBody {
         pressure_faces: vec![],
         indenter: None,
         contact_surface: vec![],
+        initial_velocity: vec![],
         mesh: m,
         material: tissue(0.3),
     }
@@ -206,6 +207,7 @@ fn lazy_jacobian_trades_updates_for_accuracy() {
         pressure_faces: vec![],
         indenter: None,
         contact_surface: vec![],
+        initial_velocity: vec![],
         mesh: m,
         material: tissue(0.3),
     };

@@ -69,6 +69,7 @@ const CAPS: &[Capability] = &[
     Capability::HapticForce,
     Capability::TissueContact,
     Capability::SurfaceForces,
+    Capability::InitialVelocity,
 ];
 
 impl ModelFactory for MeshlessFactory {

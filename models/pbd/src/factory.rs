@@ -177,6 +177,7 @@ const TISSUE_CAPS: &[Capability] = &[
     Capability::RollerConstraint,
     Capability::TissueContact,
     Capability::SurfaceForces,
+    Capability::InitialVelocity,
 ];
 
 impl ModelFactory for PbdTissueFactory {

@@ -12,9 +12,10 @@ mod cantilever_tip_load;
 mod cantilever_vibration;
 mod torque_transfer;
 
+pub use super::oscillation::TipTrack;
 pub use cantilever_gravity::{CANTILEVER_GRAVITY, GravityParams};
 pub use cantilever_tip_load::{CANTILEVER_TIP_LOAD, TipLoadParams};
-pub use cantilever_vibration::{CANTILEVER_VIBRATION, TipTrack, VibrationParams};
+pub use cantilever_vibration::{CANTILEVER_VIBRATION, VibrationParams};
 pub use torque_transfer::{TORQUE_TRANSFER, TorqueParams};
 
 use crate::references::elastica::Elastica;

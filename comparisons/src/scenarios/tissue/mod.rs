@@ -1,11 +1,13 @@
-//! Tissue statics: block compression, Lamé tube, volume preservation under
+//! Tissue scenes: block compression, Lamé tube, volume preservation under
 //! squash and twist, the Truth Cube phantom, a spherical catheter tip
 //! indenting a vessel-wall sector (frictionless contact) and its bonded
 //! flat-punch companion, a rigid sphere pressed into a block (Hertz), and
 //! the patch test (a homogeneous deformation on the whole boundary of the
-//! built-in cube or of a user's mesh).
+//! built-in cube or of a user's mesh); and one dynamic scene, the free
+//! vibration of a clamped block (`block-vibration`, its own conventions in
+//! its module).
 //!
-//! Shared conventions (SI units: m, kg, s, N, Pa, rad):
+//! Shared conventions of the static scenes (SI units: m, kg, s, N, Pa, rad):
 //! * every scene holds exactly one [`TissueBody`], no gravity, and is static:
 //!   the loads (driven displacements, pressures) follow the control
 //!   timeline's `load` factor, ramped 0 -> 1 over `ramp_time` by
@@ -30,6 +32,7 @@
 //! the origin; blocks occupy `[0, L]^3` with the loaded face at `z = L`.
 
 mod block_compression;
+mod block_vibration;
 mod curve;
 mod lame_tube;
 mod patch_test;
@@ -42,6 +45,7 @@ mod wall_punch;
 use curve::{Curve, ForceCurve};
 
 pub use block_compression::{BLOCK_COMPRESSION, BlockParams};
+pub use block_vibration::{BLOCK_VIBRATION, BlockVibrationParams, vibration_cells};
 pub use lame_tube::{LAME_TUBE, LameParams};
 pub use patch_test::{PATCH_TEST, PatchParams};
 pub use sphere_indentation::{SPHERE_DT, SPHERE_INDENTATION, SphereParams, sphere_block_mesh, sphere_grading};
@@ -89,6 +93,7 @@ pub fn all() -> Vec<&'static dyn Scenario> {
         &WALL_PUNCH,
         &SPHERE_INDENTATION,
         &PATCH_TEST,
+        &BLOCK_VIBRATION,
     ]
 }
 

@@ -337,7 +337,7 @@ impl FemModel {
             dt,
             t: 0.0,
             x,
-            v: vec![Vec3::zeros(); n],
+            v: body.start_velocities(),
             a: vec![Vec3::zeros(); n],
             uc,
             driven: body.driven_nodes.iter().map(|d| d.0).collect(),

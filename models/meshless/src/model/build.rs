@@ -82,7 +82,7 @@ impl MeshlessTissue {
             set,
             cache: StateCache::default(),
             x: mesh.nodes.clone(),
-            v: vec![Vec3::zeros(); nn],
+            v: body.start_velocities(),
             mass,
             axis_free,
             driven: body.driven_nodes.clone(),

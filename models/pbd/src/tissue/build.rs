@@ -45,7 +45,7 @@ impl PbdTissue {
         let mut s = Self {
             set,
             rest: x.clone(),
-            v: vec![Vec3::zeros(); nn],
+            v: body.start_velocities(),
             x_prev: x.clone(),
             x,
             mass: net.mass,
