@@ -1,5 +1,5 @@
-"""Converged DER tip trajectories that `arch-insertion` and `flow-drift`
-score every rod model against (default parameters only), computed through
+"""Converged DER tip trajectories that `arch-insertion`, `flow-drift` and
+`coronary-beating` score every rod model against (default parameters only), computed through
 the Python bindings (README "From Python"): DER runs each scene at two
 resolutions (segments N and 2N, time step dt and dt/2); the finer run is
 written to <scenario>/tip_trajectory.csv and the largest distance between
@@ -63,7 +63,7 @@ def write(out: Path, scenario: str, n: int, dt: str, n2: int, dt2: float, commit
 
 
 def main(argv: list[str]) -> int:
-    scenarios = argv or ["arch-insertion", "flow-drift"]
+    scenarios = argv or ["arch-insertion", "flow-drift", "coronary-beating"]
     n = int(os.environ.get("SEGMENTS", "80"))
     dt = os.environ.get("DT", "5e-4")
     n2, dt2 = 2 * n, float(dt) / 2

@@ -104,13 +104,10 @@ fn push_with_rotations(speed: f64, duration: f64, step: f64, interval: f64, rot_
     timeline(&keys)
 }
 
-/// One arch run's own sums: when the tip first passed the target plane,
-/// and the tip error against the cached trajectory.
+/// One arch run's own sums: when the tip first passed the target plane.
 #[derive(Default)]
 struct ArchSums {
     reached_at: Option<f64>,
-    ref_err2: f64,
-    ref_err_max: f64,
 }
 
 impl ArchRun {
@@ -120,10 +117,6 @@ impl ArchRun {
         let (lumen, _) = self.vessel.deepest(tip);
         let s = self.vessel.trunk.project(tip).s;
         (s, lumen.is_none() && s >= self.target_s)
-    }
-    /// Tip error (m) against the cached trajectory at `t`, if there is one.
-    fn ref_err(&self, tip: &Vec3, t: f64) -> Option<f64> {
-        self.reference.as_ref().map(|r| (tip - r.at(t)).norm())
     }
 }
 
@@ -136,26 +129,17 @@ impl Trajectory for ArchRun {
         if self.progress(tip).1 && sums.reached_at.is_none() {
             sums.reached_at = Some(obs.time);
         }
-        if let Some(e) = self.ref_err(tip, obs.time) {
-            sums.ref_err2 += e * e;
-            sums.ref_err_max = sums.ref_err_max.max(e);
-        }
     }
-    fn metrics(&self, sums: &ArchSums, common: &Common, obs: &Observation, tip: &Vec3, m: &mut Metrics) {
+    fn metrics(&self, sums: &ArchSums, _: &Common, _: &Observation, tip: &Vec3, m: &mut Metrics) {
         m.insert("tip_progress_m".into(), self.progress(tip).0);
         m.insert("reached".into(), sums.reached_at.is_some() as u8 as f64);
         if let Some(r) = sums.reached_at {
             m.insert("time_to_reach_s".into(), r);
         }
         m.insert("reference_available".into(), self.reference.is_some() as u8 as f64);
-        if let Some(e) = self.ref_err(tip, obs.time) {
-            m.insert("tip_error_m".into(), e);
-            m.insert(
-                "tip_error_rms_m".into(),
-                (sums.ref_err2 / common.samples.max(1) as f64).sqrt(),
-            );
-            m.insert("tip_error_max_m".into(), sums.ref_err_max);
-        }
+    }
+    fn reference(&self) -> Option<&TipTrajectory> {
+        self.reference.as_ref()
     }
 }
 

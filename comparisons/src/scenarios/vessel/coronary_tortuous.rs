@@ -4,6 +4,7 @@
 
 use super::*;
 use crate::params;
+use crate::references::TipTrajectory;
 use crate::scenario::{
     Declared, Inputs, Metrics, ParamSet, ParamSpec, Range, ScenarioInfo, ScenarioRun, Sweep, UsageError,
 };
@@ -73,6 +74,8 @@ pub(super) struct CoronaryRun {
     vessel: Arc<Vessel>,
     motion: Option<Arc<dyn VesselMotion>>,
     wire_radius: f64,
+    /// The converged tip path (`coronary-beating` at its defaults).
+    reference: Option<TipTrajectory>,
 }
 
 /// Cycles of 6 s: push 2 s, pull 1 s, rotate +pi/2 (1 s), hold 1 s, rotate
@@ -115,6 +118,9 @@ impl Trajectory for CoronaryRun {
         let rest_tip = self.motion.as_ref().map_or(*tip, |mo| mo.rest_point(tip, obs.time));
         m.insert("tip_progress_m".into(), self.vessel.trunk.project(&rest_tip).s);
     }
+    fn reference(&self) -> Option<&TipTrajectory> {
+        self.reference.as_ref()
+    }
 }
 
 /// Push, pull and rotate a guidewire for 60 s in a tortuous coronary:
@@ -140,7 +146,7 @@ pub const CORONARY_TORTUOUS: Declared<CoronaryParams> = Declared {
 };
 
 fn build(p: &CoronaryParams, _: &Inputs) -> Result<ScenarioRun, UsageError> {
-    coronary_run(CORONARY_TORTUOUS.info.id, p, |_| Ok(None))
+    coronary_run(CORONARY_TORTUOUS.info.id, p, |_| Ok(None), None)
 }
 
 /// The coronary scene of `coronary-tortuous` and `coronary-beating`: the
@@ -150,6 +156,7 @@ pub(super) fn coronary_run(
     id: &str,
     p: &CoronaryParams,
     motion: impl FnOnce(f64) -> Result<Option<Arc<dyn VesselMotion>>, UsageError>,
+    reference: Option<TipTrajectory>,
 ) -> Result<ScenarioRun, UsageError> {
     let wire = wire!(p);
     check_lumen(wire.radius, vessel::CORONARY_RADIUS, "coronary")?;
@@ -186,6 +193,7 @@ pub(super) fn coronary_run(
         vessel: cor,
         motion: scene.environment.vessel_motion.clone(),
         wire_radius: wire.radius,
+        reference,
     };
     Ok(vessel_run(scene, run, energy, 0.15).with_feed_limit(feed_limit))
 }

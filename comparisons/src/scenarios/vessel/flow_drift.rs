@@ -80,13 +80,13 @@ impl Trajectory for FlowRun {
         self.wire_radius
     }
     fn add(&self, _: &mut (), _: &Observation, _: &Vec3) {}
-    fn metrics(&self, _: &(), _: &Common, obs: &Observation, tip: &Vec3, m: &mut Metrics) {
+    fn metrics(&self, _: &(), _: &Common, _: &Observation, tip: &Vec3, m: &mut Metrics) {
         m.insert("tip_drift_m".into(), tip.x - self.tip0.x);
         m.insert("tip_wall_gap_m".into(), -self.tube.distance(tip) - self.wire_radius);
         m.insert("reference_available".into(), self.reference.is_some() as u8 as f64);
-        if let Some(r) = &self.reference {
-            m.insert("tip_error_m".into(), (tip - r.at(obs.time)).norm());
-        }
+    }
+    fn reference(&self) -> Option<&TipTrajectory> {
+        self.reference.as_ref()
     }
 }
 

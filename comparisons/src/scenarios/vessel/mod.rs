@@ -39,6 +39,7 @@ pub use flow_drift::{FLOW_DRIFT, FlowParams};
 pub use mesh_insertion::{MESH_INSERTION, MeshInsertionParams, builtin_surface, builtin_tube};
 pub use stick_slip_threshold::{STICK_SLIP_THRESHOLD, StickParams, chain_threshold, elastic_bar_force};
 
+use crate::references::TipTrajectory;
 use crate::scenario::{FeedLimit, Metrics, ParamSpec, Range, Reference, Scenario, ScenarioRun, Scorer, UsageError};
 use std::f64::consts::PI;
 use std::sync::Arc;
@@ -312,6 +313,21 @@ trait Trajectory: Send + Sync + 'static {
     /// The scene's metrics of `obs` (tip at `tip`) with the sums so far, added
     /// to the common ones in `m`.
     fn metrics(&self, sums: &Self::Sums, common: &Common, obs: &Observation, tip: &Vec3, m: &mut Metrics);
+    /// The converged tip path the run is scored against, if the scene has
+    /// one at these parameters: the scorer then adds `tip_error_m` (now),
+    /// `tip_error_rms_m` and `tip_error_max_m` (over the observed steps),
+    /// and the report plots it beside the models' tips.
+    fn reference(&self) -> Option<&TipTrajectory> {
+        None
+    }
+}
+
+/// A run's tip distance to its [`Trajectory::reference`] path (m): squared
+/// sum and largest over the observed steps.
+#[derive(Debug, Clone, Copy, Default)]
+struct PathError {
+    err2: f64,
+    max: f64,
 }
 
 /// A [`Trajectory`] as a scenario's [`Reference`].
@@ -323,6 +339,7 @@ struct Tracked<'a, R: Trajectory> {
     scene: &'a Scene,
     common: Common,
     sums: R::Sums,
+    path: PathError,
 }
 
 impl<R: Trajectory> Reference for Tracks<R> {
@@ -332,6 +349,7 @@ impl<R: Trajectory> Reference for Tracks<R> {
             scene,
             common: Common::default(),
             sums: R::Sums::default(),
+            path: PathError::default(),
         })
     }
 }
@@ -343,12 +361,29 @@ impl<R: Trajectory> Scorer for Tracked<'_, R> {
         };
         self.common.add(lumen.as_ref(), obs, self.run.wire_radius());
         self.run.add(&mut self.sums, obs, &tip);
+        if let Some(r) = self.run.reference() {
+            let e = (tip - r.at(obs.time)).norm();
+            self.path.err2 += e * e;
+            self.path.max = self.path.max.max(e);
+        }
     }
     fn score(&self, obs: &Observation) -> Metrics {
         let Some(tip) = tip(obs) else { return Metrics::new() };
         let mut m = self.common.metrics(obs);
         self.run.metrics(&self.sums, &self.common, obs, &tip, &mut m);
+        if let Some(r) = self.run.reference() {
+            m.insert("tip_error_m".into(), (tip - r.at(obs.time)).norm());
+            let n = self.common.samples.max(1) as f64;
+            m.insert("tip_error_rms_m".into(), (self.path.err2 / n).sqrt());
+            m.insert("tip_error_max_m".into(), self.path.max);
+        }
         m
+    }
+    fn reference_tip_at(&self, t: f64) -> Option<[f64; 3]> {
+        self.run.reference().map(|r| {
+            let x = r.at(t);
+            [x.x, x.y, x.z]
+        })
     }
 }
 
