@@ -227,6 +227,15 @@ fn der_meets_the_elastic_wire_stick_slip_reference() {
         // issue asks; a chain of K nodes is (mu_s - mu_d) / (mu_d K) above.
         assert!(th < 0.05, "{n} segments: threshold error {th}");
         curve.push(sum.errors["curve_error_rel"]);
+        // The series the report plots: the hand force against the bar's
+        // law after settling (none before), ending on the sliding mu_d N.
+        let scored: Vec<_> = sum.series.iter().filter(|x| x.force[1].is_finite()).collect();
+        assert!(scored.len() > 10 && scored.len() < sum.series.len());
+        for x in &scored {
+            assert_eq!(x.force[0], x.hand_force[0], "t = {}", x.t);
+        }
+        let last = scored.last().unwrap();
+        assert_eq!(last.force[1], sum.errors["threshold_ref_n"]);
     }
     // Measured 4.5e-2, 2.2e-2, 1.1e-2: order 1.02 then 1.00.
     for w in curve.windows(2) {

@@ -167,6 +167,13 @@ fn capstan_scores_the_tension_ratio_over_the_pull_window() {
         "default wire is not flexible enough: {}",
         e["bending_over_tension"]
     );
+    // The series the report plots: inside the pull window (and only
+    // there) the hand's tension against T_in exp(mu theta).
+    let scored: Vec<_> = sum.series.iter().filter(|x| x.force[1].is_finite()).collect();
+    assert!(!scored.is_empty() && scored.len() < sum.series.len());
+    for x in &scored {
+        assert!((x.force[0] - t_in * exact).abs() < 1e-12 && (x.force[1] - t_in * exact).abs() < 1e-12);
+    }
     // A frictionless answer (T_out = T_in) is off by 1 - exp(-mu theta).
     let sum = run(s, &p, &make(1.0));
     let want = 1.0 - (-mu * theta).exp();

@@ -18,7 +18,7 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use crate::ReportError;
-use crate::format::{fmt_plain, fmt_tick};
+use crate::format::{fmt_linear_tick, fmt_plain, fmt_tick};
 
 /// Font family name the embedded DejaVu Sans is registered under.
 const FONT: &str = "sans-serif";
@@ -344,6 +344,7 @@ fn scales(p: &Panel) -> (Scale, Scale) {
 fn draw_panel<DB: DrawingBackend>(p: &Panel, area: &DrawingArea<DB, Shift>) -> Result<(), String> {
     let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
     let (xs, ys) = scales(p);
+    let (x_step, y_step) = (xs.tick_step(), ys.tick_step());
     let mut builder = ChartBuilder::on(area);
     if !p.title.is_empty() {
         builder.caption(&p.title, font(PANEL_TITLE_PX));
@@ -356,8 +357,8 @@ fn draw_panel<DB: DrawingBackend>(p: &Panel, area: &DrawingArea<DB, Shift>) -> R
         .map_err(e)?;
     let xa = p.x.clone();
     let ya = p.y.clone();
-    let xf = move |v: &f64| label(&xa, *v);
-    let yf = move |v: &f64| label(&ya, *v);
+    let xf = move |v: &f64| label(&xa, *v, x_step);
+    let yf = move |v: &f64| label(&ya, *v, y_step);
     chart
         .configure_mesh()
         .x_desc(p.x.label.as_str())
@@ -416,6 +417,16 @@ struct Scale {
     light: Vec<f64>,
 }
 
+impl Scale {
+    /// Spacing of the bold ticks (transformed units), when there are two.
+    fn tick_step(&self) -> Option<f64> {
+        match self.bold.as_slice() {
+            [a, b, ..] => Some(b - a),
+            _ => None,
+        }
+    }
+}
+
 impl Ranged for Scale {
     type FormatOption = DefaultFormatting;
     type ValueType = f64;
@@ -438,9 +449,13 @@ impl Ranged for Scale {
     }
 }
 
-fn label(axis: &Axis, v: f64) -> String {
+fn label(axis: &Axis, v: f64, step: Option<f64>) -> String {
     let raw = if axis.log { 10f64.powf(v) } else { v };
-    if axis.plain { fmt_plain(raw) } else { fmt_tick(raw) }
+    match (axis.plain, axis.log, step) {
+        (true, false, Some(step)) => fmt_linear_tick(raw, step),
+        (true, _, _) => fmt_plain(raw),
+        _ => fmt_tick(raw),
+    }
 }
 
 /// A marker of shape `m` centred on `c` (any coordinate type), radius [`MARKER_R`] px.

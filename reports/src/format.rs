@@ -77,6 +77,22 @@ pub fn fmt_tick(v: f64) -> String {
     }
 }
 
+/// Tick label on a linear axis whose ticks are `step` apart: as
+/// [`fmt_plain`], with more significant digits where 3 would print two
+/// neighbouring ticks alike (1.585 and 1.59 on an axis stepping 0.005 are
+/// `1.585` and `1.59`, not `1.59` twice).
+pub fn fmt_linear_tick(v: f64, step: f64) -> String {
+    if !(step > 0.0 && step.is_finite()) || v == 0.0 || !v.is_finite() {
+        return fmt_plain(v);
+    }
+    // Digits from the value's leading one down to the step's.
+    let needed = (v.abs().max(step).log10().floor() - step.log10().floor()) as i64 + 1;
+    if (v - v.round()).abs() <= 1e-9 * v.abs().max(1.0) && step >= 1.0 {
+        return fmt_plain(v);
+    }
+    fmt_sig(v, needed.clamp(3, 15) as usize)
+}
+
 /// Tick label for counts and linear axes: an integer when `v` is one, else 3 significant digits.
 pub fn fmt_plain(v: f64) -> String {
     if v.is_finite() && v.abs() < 1e15 && (v - v.round()).abs() <= 1e-9 * v.abs().max(1.0) {
@@ -206,4 +222,28 @@ pub fn fnv1a(bytes: &[u8]) -> u64 {
     bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, b| {
         (h ^ u64::from(*b)).wrapping_mul(0x0000_0100_0000_01b3)
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Neighbouring ticks print differently however narrow the axis; wide
+    /// axes keep the plain labels.
+    #[test]
+    fn linear_ticks_print_apart() {
+        let labels: Vec<String> = linear_ticks(1.578, 1.602)
+            .iter()
+            .map(|&v| fmt_linear_tick(v, 0.005))
+            .collect();
+        assert_eq!(labels, ["1.58", "1.585", "1.59", "1.595", "1.6"]);
+        let labels: Vec<String> = linear_ticks(0.0, 8.5e-4)
+            .iter()
+            .map(|&v| fmt_linear_tick(v, 2e-4))
+            .collect();
+        assert_eq!(labels, ["0", "2e-4", "4e-4", "6e-4", "8e-4"]);
+        assert_eq!(fmt_linear_tick(20.0, 5.0), "20");
+        assert_eq!(fmt_linear_tick(0.0051, 5e-5), "0.0051");
+        assert_eq!(fmt_linear_tick(0.00505, 5e-5), "0.00505");
+    }
 }

@@ -8,7 +8,11 @@ use std::path::Path;
 
 use super::{Group, Section, Styles, best_ok_runs, over_time, run_label};
 use crate::figure::{Axis, Figure, LegendEntry, Line, Look, SeriesSpec};
-use crate::read_series;
+use crate::{fmt_sig, read_series};
+
+/// A model whose force exceeds this many times the largest reference force
+/// is noted instead of drawn.
+const OFF_SCALE: f64 = 10.0;
 
 /// The runs of consecutive finite samples of `v` over `t`: the reference
 /// holds in phases (a needle's insertion and its steady retraction, not
@@ -38,11 +42,11 @@ fn stretches(t: &[f64], v: &[f64]) -> Vec<Vec<(f64, f64)>> {
 /// needle's inserted length, differs from model to model). `None` when no
 /// run recorded a reference force. Unreadable series are noted by the
 /// error-over-time plot, which reads the same runs.
-pub(super) fn force_time_figure(dir: &Path, g: &Group, st: &Styles, _sec: &mut Section) -> Option<(Figure, String)> {
+pub(super) fn force_time_figure(dir: &Path, g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figure, String)> {
     let mut series = Vec::new();
     let mut legend = Vec::new();
+    let mut runs = Vec::new();
     for r in best_ok_runs(g) {
-        let model = r.model.as_str();
         if r.run_dir.trim().is_empty() {
             continue;
         }
@@ -50,7 +54,25 @@ pub(super) fn force_time_figure(dir: &Path, g: &Group, st: &Styles, _sec: &mut S
             continue;
         };
         let (got, want) = (stretches(&s.t, &s.force), stretches(&s.t, &s.ref_force));
-        if want.is_empty() {
+        if !want.is_empty() {
+            runs.push((r, got, want));
+        }
+    }
+    // A force far off every reference would flatten the others to a line
+    // at zero: such a model is left off the plot and named in a note.
+    let largest = |parts: &[Vec<(f64, f64)>]| parts.iter().flatten().map(|p| p.1.abs()).fold(0.0, f64::max);
+    let scale = runs.iter().map(|(_, _, want)| largest(want)).fold(0.0, f64::max);
+    for (r, got, want) in runs {
+        let model = r.model.as_str();
+        let peak = largest(&got);
+        if scale > 0.0 && peak > OFF_SCALE * scale {
+            sec.notes.push(format!(
+                "Force over time: {} is left off the plot: its force reaches {} N, {}x the largest reference force ({} N).",
+                run_label(r),
+                fmt_sig(peak, 3),
+                fmt_sig(peak / scale, 3),
+                fmt_sig(scale, 3)
+            ));
             continue;
         }
         let look = st.look(model, 0, Line::Solid);

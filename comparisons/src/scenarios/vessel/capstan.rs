@@ -110,6 +110,12 @@ impl Trajectory for CapstanRun {
             w.n += 1;
         }
     }
+    /// Inside the pull window, where the capstan law holds: the hand's
+    /// tension against `T_in exp(mu theta)`.
+    fn force_point(&self, obs: &Observation) -> Option<(f64, f64)> {
+        let (from, to) = self.window;
+        (obs.time >= from && obs.time <= to).then(|| (self.tension(obs), self.t_in * self.ratio_ref))
+    }
     fn metrics(&self, w: &Window, _: &Common, obs: &Observation, _: &Vec3, m: &mut Metrics) {
         let now = self.tension(obs) / self.t_in;
         let ratio = if w.n > 0 { w.sum / w.n as f64 / self.t_in } else { now };

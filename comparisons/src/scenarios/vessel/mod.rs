@@ -320,6 +320,13 @@ trait Trajectory: Send + Sync + 'static {
     fn reference(&self) -> Option<&TipTrajectory> {
         None
     }
+    /// For scenes whose reference is a force law: the force the scene
+    /// scores at `obs` and the law's value there (N), where the law holds
+    /// ([`Scorer::force_point`]); `None` (the default) elsewhere.
+    fn force_point(&self, obs: &Observation) -> Option<(f64, f64)> {
+        let _ = obs;
+        None
+    }
 }
 
 /// A run's tip distance to its [`Trajectory::reference`] path (m): squared
@@ -378,6 +385,9 @@ impl<R: Trajectory> Scorer for Tracked<'_, R> {
             m.insert("tip_error_max_m".into(), self.path.max);
         }
         m
+    }
+    fn force_point(&self, obs: &Observation) -> Option<(f64, f64)> {
+        self.run.force_point(obs)
     }
     fn reference_tip_at(&self, t: f64) -> Option<[f64; 3]> {
         self.run.reference().map(|r| {

@@ -183,6 +183,16 @@ impl Trajectory for StickRun {
         // The wire resists the pull: it pulls the clamp along +x.
         sums.add(self, obs, *tip, obs.hand_force.x);
     }
+    /// After settling: the hand force against the elastic bar's, which is
+    /// `sqrt(2 EA mu_d n u0)` while the slip front spreads and `mu_d N`
+    /// from the moment it reaches the tip (sliding).
+    fn force_point(&self, obs: &Observation) -> Option<(f64, f64)> {
+        (obs.time >= self.settle).then(|| {
+            let u0 = self.pull_speed * (obs.time - self.settle);
+            let law = elastic_bar_force(self.ea, self.length, self.weight, self.mu_d, u0);
+            (obs.hand_force.x, law)
+        })
+    }
     fn metrics(&self, t: &StickSums, _: &Common, _: &Observation, _: &Vec3, m: &mut Metrics) {
         let run = self;
         let threshold = run.threshold();
