@@ -229,7 +229,7 @@ fn navigation_mapping_allows_more_bend_than_the_weight_mapping() {
     // the whole wire: in the calibration scene the navigation boxes let the
     // weight pull the cantilever much further down than Euler-Bernoulli
     // (the navigation mapping gives up the cantilever it was not made for)
-    let s = cantilever(9.81);
+    let s = calibration::calibration_scene();
     let target = calibration::calibration_target();
     let mut sag = Vec::new();
     for m in [BetaMapping::Weight, BetaMapping::Navigation { yield_strain: EPS }] {

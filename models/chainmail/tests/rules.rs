@@ -174,7 +174,7 @@ fn calibration_reproduces_the_committed_constant() {
 fn gravity_sag_depends_on_fidelity() {
     // not a pass/fail physics claim: records that the calibrated model does
     // not converge under refinement (beta ~ Delta^3, sag ~ relaxation vs g dt^2)
-    let s = cantilever(9.81);
+    let s = calibration::calibration_scene();
     let target = calibration::calibration_target();
     let mut out = Vec::new();
     for (n, dt, it) in [(20, 1e-2, 10), (40, 1e-2, 10), (20, 1e-3, 10), (20, 1e-2, 40)] {
