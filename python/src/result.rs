@@ -93,7 +93,8 @@ impl RunResult {
     }
 
     /// The sampled time series, one `(samples,)` float64 array per column
-    /// of `observables.csv` (`t` s, `tip_x` m, `hand_fx` N, `hand_tx` N m,
+    /// of `observables.csv` (`t` s, `tip_x` m: the first rod's tip, or the
+    /// point a scene without a rod follows; `hand_fx` N, `hand_tx` N m,
     /// `energy` J, `error`: the primary error, NaN where not scored;
     /// `ref_tip_x` m: the reference tip trajectory, NaN where the scenario's
     /// reference is not one; `force` and `ref_force` N: the force the scene

@@ -510,7 +510,8 @@ pub const SERIES_COLUMNS: [&str; 17] = [
 pub struct Series {
     /// Simulated time (s).
     pub t: Vec<f64>,
-    /// Tip position (m).
+    /// Tip position (m): the first rod's, or the point a scene without a
+    /// rod follows (a tissue's probe node).
     pub tip_x: Vec<f64>,
     /// Tip position (m).
     pub tip_y: Vec<f64>,
