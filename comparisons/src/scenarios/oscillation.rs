@@ -34,7 +34,7 @@ impl VibrationTrack {
 
     /// Take in the displacement `z` (m) at time `t` (s).
     pub fn push(&mut self, t: f64, z: f64) {
-        self.sum2 += (z - self.amplitude * (self.omega * t).sin()).powi(2);
+        self.sum2 += (z - self.reference_at(t)).powi(2);
         self.track.samples.push((t, z));
     }
 

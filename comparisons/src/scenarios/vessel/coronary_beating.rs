@@ -104,8 +104,8 @@ pub const CORONARY_BEATING: Declared<BeatingParams> = Declared {
 
 fn build(p: &BeatingParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
     let (start, ramp) = (p.motion_start, p.motion_ramp);
-    let reference = cached_reference(CORONARY_BEATING.info.id, inputs)?;
     let id = CORONARY_BEATING.info.id;
+    let reference = cached_reference(id, inputs)?;
     coronary_run(
         id,
         &p.coronary(),
