@@ -1,8 +1,8 @@
 //! The harness factory of the needle model: [`NeedleFactory`] (`id = "needle"`).
 
-use crate::model::NeedleModel;
+use crate::model::{CG_TOLERANCE, LcpSolver, NeedleModel};
 use surgbench_core::{
-    BuildError, Capability, Family, Fidelity, FidelityKey, Model, ModelFactory, Scene, Settings, Unsupported,
+    BuildError, Capability, Choice, Family, Fidelity, FidelityKey, Model, ModelFactory, Scene, Settings, Unsupported,
     model::check_capabilities,
 };
 use surgbench_der::DerRod;
@@ -14,11 +14,32 @@ pub const DEFAULT_SEGMENTS: usize = 40;
 pub const DEFAULT_DT: f64 = 1e-3;
 
 /// The needle's settings beyond the common fidelity knobs.
-const KEYS: &[FidelityKey] = &[FidelityKey::number(
-    "threads",
-    "tissue assembly threads (default 2); results are identical for any count",
-)
-.whole(1.0, 64.0)];
+const KEYS: &[FidelityKey] = &[
+    FidelityKey::number(
+        "threads",
+        "tissue assembly threads (default 2); results are identical for any count",
+    )
+    .whole(1.0, 64.0),
+    FidelityKey::choice(
+        "lcp_solver",
+        "how each trial of the friction-state LCP is solved",
+        &[
+            Choice::new(
+                "schur",
+                "default: tissue and needle factored once per step, each trial a dense solve of the Schur complement on the coupling points",
+            ),
+            Choice::new(
+                "cg",
+                "the seed's: projected Jacobi-preconditioned CG over the whole coupled system for every trial, no tissue factorization",
+            ),
+        ],
+    ),
+    FidelityKey::number(
+        "cg_tolerance",
+        "lcp_solver=cg: relative residual each CG solve stops at (default 1e-8)",
+    )
+    .between(0.0, 1.0),
+];
 
 /// The `needle` model: FEM tissue + DER needle, embedded coupling points,
 /// stick-slip friction by the seed's LCP.
@@ -29,7 +50,7 @@ impl ModelFactory for NeedleFactory {
         "needle"
     }
     fn description(&self) -> &'static str {
-        "needle insertion (Chentanez 2009): corotational FEM tissue + DER needle, embedded coupling points, stick-slip LCP by Schur complement"
+        "needle insertion (Chentanez 2009): corotational FEM tissue + DER needle, embedded coupling points, stick-slip LCP by Schur complement (or the seed's CG)"
     }
     fn family(&self) -> Family {
         Family::Coupled
@@ -103,13 +124,21 @@ impl ModelFactory for NeedleFactory {
             ));
         }
         let spacing = body.length / segments as f64;
-        Ok(Box::new(NeedleModel::new(
-            fem,
-            rod,
-            tissue.mesh.tets.clone(),
-            needle,
-            spacing,
-            dt,
-        )))
+        let cg = settings.pick("lcp_solver", &[("schur", false), ("cg", true)], false)?;
+        if !cg && settings.number("cg_tolerance").is_some() {
+            return Err(BuildError::bad(
+                "cg_tolerance",
+                "applies to lcp_solver=cg only; the Schur complement solves each trial directly",
+            ));
+        }
+        let solver = match cg {
+            false => LcpSolver::Schur,
+            true => LcpSolver::Cg {
+                tolerance: settings.number_or("cg_tolerance", CG_TOLERANCE),
+            },
+        };
+        Ok(Box::new(
+            NeedleModel::new(fem, rod, tissue.mesh.tets.clone(), needle, spacing, dt).with_solver(solver),
+        ))
     }
 }

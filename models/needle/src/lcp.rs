@@ -69,6 +69,8 @@ pub struct Solution {
     pub trials: usize,
     /// Whether the returned configuration satisfies every inequality.
     pub consistent: bool,
+    /// Which trial (0-based) the returned configuration was solved in.
+    pub chosen: usize,
 }
 
 /// Solve the equality system of one configuration: returns `(lambda, gap)`,
@@ -169,7 +171,31 @@ pub fn solve(
     max_trials: usize,
 ) -> Solution {
     let m = bounds.len();
-    assert!(g_free.len() == 3 * m && guess.len() == m && w.nrows() == 3 * m && w.ncols() == 3 * m);
+    assert!(w.nrows() == 3 * m && w.ncols() == 3 * m);
+    solve_by(
+        |states| solve_configuration(w, g_free, bounds, states),
+        g_free,
+        bounds,
+        guess,
+        tau,
+        max_trials,
+    )
+}
+
+/// [`solve`] with the equality system of each configuration solved by
+/// `configuration(states) -> (lambda, gap)` (`None`: not solvable), e.g.
+/// an iterative solver of the whole coupled system instead of the dense
+/// Delassus matrix; the trial logic, checks and scales are the same.
+pub fn solve_by(
+    mut configuration: impl FnMut(&[State]) -> Option<(Vec<f64>, Vec<f64>)>,
+    g_free: &[f64],
+    bounds: &[Bounds],
+    guess: &[State],
+    tau: f64,
+    max_trials: usize,
+) -> Solution {
+    let m = bounds.len();
+    assert!(g_free.len() == 3 * m && guess.len() == m);
     // Scales of the checks: forces against the largest bound, slips against
     // the largest unconstrained tangential gap (the slip a free needle would make).
     let force_scale = bounds
@@ -185,7 +211,7 @@ pub fn solve(
     while trials < max_trials.max(1) {
         trials += 1;
         tried.insert(states.clone());
-        let Some(sol) = solve_configuration(w, g_free, bounds, &states) else {
+        let Some(sol) = configuration(&states) else {
             break;
         };
         let viol = violations(&sol, bounds, &states, tau, force_scale, gap_scale);
@@ -196,6 +222,7 @@ pub fn solve(
             gap: sol.1,
             trials,
             consistent: viol.is_empty(),
+            chosen: trials - 1,
         };
         if viol.is_empty() {
             return current;
@@ -231,6 +258,7 @@ pub fn solve(
                 gap: g_free.to_vec(),
                 trials,
                 consistent: false,
+                chosen: trials,
             },
         )
     });

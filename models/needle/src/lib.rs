@@ -22,6 +22,10 @@
 //!   Jacobian block changed) and the needle's banded factor give the
 //!   Delassus matrix `W` (one tissue and one needle solve per point and
 //!   axis), and every trial is a small dense solve.
+//! * Or, with `lcp_solver = "cg"`, by the seed's solver: every trial a
+//!   projected Jacobi-preconditioned CG over the whole coupled system
+//!   ([`pcg`]), with no tissue factorization. The two agree to the CG's
+//!   tolerance, step by step (`tests/cg_solver.rs`).
 //! * The tissue steps by backward Euler, not the seed's Newmark (see
 //!   [`factory`]: measured ringing under the hard constraints).
 //! * `Observation::hand_force` is, as for every model, the force the needle
@@ -39,7 +43,7 @@
 //! * Viscous shaft friction (seed Sec. 3.3) is implicit: a sliding point's
 //!   row of the LCP gains `1 / c_i` on the diagonal ([`lcp`]).
 //!
-//! Not yet (issues 17 and 18): tip remeshing and the seed's CG solver.
+//! Not yet (issues 17 and 18): tip remeshing and the seed's lazy Jacobian rule.
 //!
 //! Units are SI: m, kg, s, N, Pa.
 
@@ -47,6 +51,7 @@ pub mod coupling;
 pub mod factory;
 pub mod lcp;
 pub mod model;
+pub mod pcg;
 
 pub use factory::NeedleFactory;
 pub use model::{LcpStats, NeedleModel, Point};

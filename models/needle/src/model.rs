@@ -1,15 +1,18 @@
 //! [`NeedleModel`]: one coupled time step of FEM tissue and DER needle (the
 //! needle seed's Algorithm 1, Chentanez et al. 2009), with embedded coupling
-//! points and the friction-state LCP of [`crate::lcp`] solved through the
-//! Schur complement on the coupling points.
+//! points and the friction-state LCP of [`crate::lcp`], each trial solved
+//! through the Schur complement on the coupling points or, as the seed
+//! does, by conjugate gradients over the whole coupled system
+//! ([`LcpSolver`]).
 
 use crate::coupling::{Embedded, OnNeedle, frame, locate, locate_within, on_needle};
-use crate::lcp::{self, Bounds, State};
+use crate::lcp::{self, Bounds, Solution, State};
+use crate::pcg::{self, Row};
 use nalgebra::DMatrix;
 use std::collections::BTreeMap;
 use surgbench_core::{DeviceCommand, Model, NeedleTissue, Observation, SimError, StepStats, Vec3};
 use surgbench_der::DerRod;
-use surgbench_fem::FemModel;
+use surgbench_fem::{FemModel, LinearStep};
 
 /// The seed's LCP check tolerance `tau_check` (Sec. 3.3).
 pub const TAU_CHECK: f64 = 1e-3;
@@ -20,6 +23,26 @@ pub const MAX_TRIALS: usize = 10;
 /// the deformed mesh opens around the tip do not drop the tip point, while
 /// a tip that leaves the tissue loses it within a quarter tet.
 pub const TIP_SLACK: f64 = 0.25;
+
+/// How each configuration (trial) of the LCP is solved.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum LcpSolver {
+    /// Factor the tissue and needle blocks once per step and solve every
+    /// trial through the small Schur complement `W` on the coupling points.
+    Schur,
+    /// The seed's solver: projected preconditioned conjugate gradients over
+    /// the whole coupled system for every trial ([`crate::pcg`]), warm
+    /// started from the last trial; no tissue factorization.
+    Cg {
+        /// Relative residual it stops at (`sqrt(r . P r) / sqrt(b . D^-1 b)`).
+        tolerance: f64,
+    },
+}
+
+/// CG tolerance when the settings leave `cg_tolerance` unset: the LCP's
+/// checks work at `tau_check = 1e-3` of the forces, so a residual 1e-8 of
+/// the right-hand side leaves them five orders of margin.
+pub const CG_TOLERANCE: f64 = 1e-8;
 
 /// A coupling point: a tissue material point held on the needle at an
 /// arclength, with its friction state.
@@ -38,6 +61,8 @@ pub struct Point {
 pub struct LcpStats {
     /// Coupled steps (steps with at least one coupling point).
     pub steps: usize,
+    /// Every step taken, coupled or not.
+    pub all_steps: usize,
     /// Configurations solved over those steps.
     pub trials: usize,
     /// Most configurations in one step.
@@ -52,6 +77,14 @@ pub struct LcpStats {
     pub tip_fallbacks: usize,
     /// Times the tip point was dropped: the tip left the tissue.
     pub tip_lost: usize,
+    /// CG iterations (products with the coupled matrix) over all steps,
+    /// counting each step's unconstrained solve and every trial; 0 with the
+    /// Schur solver.
+    pub linear_iterations: usize,
+    /// Most CG iterations in one step.
+    pub max_linear_iterations: usize,
+    /// CG solves that stopped at the iteration limit above the tolerance.
+    pub linear_unconverged: usize,
 }
 
 /// Frame, needle and tissue stencils and start-of-step gap of one point.
@@ -86,6 +119,7 @@ pub struct NeedleModel {
     /// it marks where the shaft inside the tissue begins).
     entry: Option<Embedded>,
     stats: LcpStats,
+    solver: LcpSolver,
 }
 
 impl NeedleModel {
@@ -113,8 +147,15 @@ impl NeedleModel {
             clamp_share: Vec3::zeros(),
             entry: None,
             stats: LcpStats::default(),
+            solver: LcpSolver::Schur,
         }
         .pre_inserted()
+    }
+
+    /// The same model with each LCP trial solved by `solver`.
+    pub fn with_solver(mut self, solver: LcpSolver) -> Self {
+        self.solver = solver;
+        self
     }
 
     /// A needle that starts inside the tissue (a channel cut before the
@@ -464,33 +505,248 @@ impl NeedleModel {
     }
 }
 
-impl Model for NeedleModel {
-    fn step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
-        let lin = self.fem.begin_linear_step(dt, cmd.load)?;
-        self.rod.begin_linear_step(dt, cmd)?;
-        let xt = self.fem.positions();
+/// CG work of one step: iterations over all its solves, and how many
+/// stopped at the limit.
+struct CgWork {
+    iterations: usize,
+    unconverged: usize,
+}
+
+impl NeedleModel {
+    /// One step's LCP through the Schur complement: uncoupled increments by
+    /// the two factors, the Delassus matrix, the LCP, and the final
+    /// increments with the constraint forces on both sides. Returns
+    /// `(dz, dx, solution)`, the solution `None` without coupling points.
+    fn solve_schur(
+        &mut self,
+        lin: &LinearStep,
+        geo: &[Geometry],
+        bounds: &[Bounds],
+        states: &[State],
+    ) -> (Vec<f64>, Vec<f64>, Option<Solution>) {
         let mut dx = lin.residual().to_vec();
         self.fem.solve_linear(&mut dx);
         let mut dz: Vec<f64> = self.rod.linear_residual().iter().map(|g| -g).collect();
         self.rod.solve_linear(&mut dz);
+        if geo.is_empty() {
+            return (dz, dx, None);
+        }
+        let mut g_free = vec![0.0; 3 * geo.len()];
+        for (i, g) in geo.iter().enumerate() {
+            let u = g.gap + self.needle_motion(&g.needle, &dz) - Self::tissue_motion(g, &dx);
+            (0..3).for_each(|r| g_free[3 * i + r] = g.frame[r].dot(&u));
+        }
+        let w = self.delassus(geo);
+        let sol = lcp::solve(&w, &g_free, bounds, states, TAU_CHECK, MAX_TRIALS);
+        let mut rn: Vec<f64> = self.rod.linear_residual().iter().map(|g| -g).collect();
+        let mut rt = lin.residual().to_vec();
+        let mut clamp = Vec3::zeros();
+        for (i, g) in geo.iter().enumerate() {
+            let f: Vec3 = (0..3).map(|r| g.frame[r] * sol.lambda[3 * i + r]).sum();
+            self.add_needle(&g.needle, &f, &mut rn, &mut clamp);
+            for a in 0..4 {
+                (0..3).for_each(|c| rt[3 * g.tissue[a] + c] -= g.w[a] * f[c]);
+            }
+        }
+        self.rod.solve_linear(&mut rn);
+        self.fem.solve_linear(&mut rt);
+        (rn, rt, Some(sol))
+    }
+
+    /// Row `d` (frame axis) of point `g`'s gap over the coupled unknowns
+    /// `[dz; dx]` (`nf` needle DOFs first): the needle point's motion minus
+    /// the tissue point's, along the axis; clamped needle nodes and
+    /// constrained tissue DOFs do not move and have no entries.
+    fn constraint_row(&self, g: &Geometry, d: usize, nf: usize) -> Row {
+        let e = g.frame[d];
+        let mut row = Row::new();
+        for (k, w) in g.needle.nodes.iter().zip(g.needle.w) {
+            if let Some(dof) = self.rod.node_dof(*k) {
+                (0..3).for_each(|c| row.push((dof + c, w * e[c])));
+            }
+        }
+        for a in 0..4 {
+            for c in 0..3 {
+                let dof = 3 * g.tissue[a] + c;
+                if self.fem.is_free(dof) {
+                    row.push((nf + dof, -g.w[a] * e[c]));
+                }
+            }
+        }
+        row
+    }
+
+    /// One step's LCP by the seed's solver: every trial a projected PCG
+    /// over the whole coupled system `[H 0; 0 A] [dz; dx] = b + J^T lambda`
+    /// ([`crate::pcg`]), the first warm started from the unconstrained
+    /// solve (which also gives the free gaps the LCP scales its checks by),
+    /// each next from the last. The step's increments are those of the
+    /// configuration the LCP returns. Returns `(dz, dx, solution, work)`.
+    fn solve_cg(
+        &mut self,
+        lin: &LinearStep,
+        geo: &[Geometry],
+        bounds: &[Bounds],
+        states: &[State],
+        tol: f64,
+    ) -> (Vec<f64>, Vec<f64>, Option<Solution>, CgWork) {
+        let nf = self.rod.free_dofs();
+        let nt = 3 * self.fem.node_masses().len();
+        let n = nf + nt;
+        let mut b: Vec<f64> = self.rod.linear_residual().iter().map(|g| -g).collect();
+        b.extend(
+            lin.residual()
+                .iter()
+                .enumerate()
+                .map(|(d, r)| if self.fem.is_free(d) { *r } else { 0.0 }),
+        );
+        let mut diag = self.rod.linear_diagonal();
+        diag.extend(self.fem.linear_diagonal(lin));
+        let rows: Vec<Row> = geo
+            .iter()
+            .flat_map(|g| (0..3).map(move |d| (g, d)))
+            .map(|(g, d)| self.constraint_row(g, d, nf))
+            .collect();
+        let gap0: Vec<f64> = geo
+            .iter()
+            .flat_map(|g| (0..3).map(move |d| g.frame[d].dot(&g.gap)))
+            .collect();
+        // At most 4 n products per solve: CG ends in n in exact arithmetic;
+        // the rest is room for round-off before it counts as unconverged.
+        let max_iter = 4 * n;
+        let mut work = CgWork {
+            iterations: 0,
+            unconverged: 0,
+        };
+        let (rod, fem) = (&self.rod, &mut self.fem);
+        let mut tissue_out = vec![0.0; nt];
+        // `out = K x + sum over viscous rows c J_r^T (J_r x)`.
+        let mut apply = |viscous: &[(usize, f64)], x: &[f64], out: &mut [f64]| {
+            rod.apply_linear(&x[..nf], &mut out[..nf]);
+            fem.apply_linear(lin, &x[nf..], &mut tissue_out);
+            out[nf..].copy_from_slice(&tissue_out);
+            for &(r, c) in viscous {
+                let jx: f64 = rows[r].iter().map(|&(k, a)| a * x[k]).sum();
+                rows[r].iter().for_each(|&(k, a)| out[k] += c * a * jx);
+            }
+        };
+        let mut y_free = vec![0.0; n];
+        let free = pcg::solve(
+            &mut |x, out| apply(&[], x, out),
+            &diag,
+            &b,
+            &[],
+            &[],
+            &mut y_free,
+            tol,
+            max_iter,
+        )
+        .expect("no rows, nothing dependent");
+        work.iterations += free.iterations;
+        work.unconverged += usize::from(!free.converged);
+        let split = |y: Vec<f64>| {
+            let mut dz = y;
+            let dx = dz.split_off(nf);
+            (dz, dx)
+        };
+        if geo.is_empty() {
+            let (dz, dx) = split(y_free);
+            return (dz, dx, None, work);
+        }
+        let row_dot = |r: usize, y: &[f64]| rows[r].iter().map(|&(k, a)| a * y[k]).sum::<f64>();
+        let g_free: Vec<f64> = (0..rows.len()).map(|r| gap0[r] + row_dot(r, &y_free)).collect();
+        let mut trials: Vec<Vec<f64>> = Vec::new();
+        let configuration = |states: &[State]| {
+            let mut lambda = vec![0.0; rows.len()];
+            let mut rhs = b.clone();
+            let mut diag_t = diag.clone();
+            let (mut eq, mut viscous, mut sliding) = (Vec::new(), Vec::new(), Vec::new());
+            for (i, st) in states.iter().enumerate() {
+                let coulomb = match st {
+                    State::Static => None,
+                    State::DynamicPlus => Some(-bounds[i].forward),
+                    State::DynamicMinus => Some(bounds[i].backward),
+                };
+                let r = 3 * i;
+                match coulomb {
+                    // Viscous slip: lambda = f - c g with g = gap0 + J y, so
+                    // (K + c J^T J) y = b + J^T (f - c gap0).
+                    Some(f) => {
+                        let c = bounds[i].viscous;
+                        let known = f - c * gap0[r];
+                        rows[r].iter().for_each(|&(k, a)| rhs[k] += a * known);
+                        if c > 0.0 {
+                            viscous.push((r, c));
+                            rows[r].iter().for_each(|&(k, a)| diag_t[k] += c * a * a);
+                        }
+                        sliding.push((r, f, c));
+                    }
+                    None => eq.push(r),
+                }
+                eq.extend([r + 1, r + 2]);
+            }
+            let eq_rows: Vec<Row> = eq.iter().map(|&r| rows[r].clone()).collect();
+            let c: Vec<f64> = eq.iter().map(|&r| -gap0[r]).collect();
+            let mut y = trials.last().cloned().unwrap_or_else(|| y_free.clone());
+            let out = pcg::solve(
+                &mut |x, o| apply(&viscous, x, o),
+                &diag_t,
+                &rhs,
+                &eq_rows,
+                &c,
+                &mut y,
+                tol,
+                max_iter,
+            )?;
+            work.iterations += out.iterations;
+            work.unconverged += usize::from(!out.converged);
+            for (&r, l) in eq.iter().zip(&out.lambda) {
+                lambda[r] = *l;
+            }
+            let gap: Vec<f64> = (0..rows.len()).map(|r| gap0[r] + row_dot(r, &y)).collect();
+            for (r, f, c) in sliding {
+                lambda[r] = f - c * gap[r];
+            }
+            trials.push(y);
+            Some((lambda, gap))
+        };
+        let sol = lcp::solve_by(configuration, &g_free, bounds, states, TAU_CHECK, MAX_TRIALS);
+        let y = trials.get(sol.chosen).cloned().unwrap_or(y_free);
+        let (dz, dx) = split(y);
+        (dz, dx, Some(sol), work)
+    }
+}
+
+impl Model for NeedleModel {
+    fn step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
+        let schur = self.solver == LcpSolver::Schur;
+        self.stats.all_steps += 1;
+        let lin = self.fem.begin_linear_step_with(dt, cmd.load, schur)?;
+        self.rod.begin_linear_step(dt, cmd)?;
+        let xt = self.fem.positions();
         let geo = self.geometry(&xt);
-        let m = geo.len();
         let mut stats = StepStats {
             iterations: 0,
             residual: 0.0,
             converged: true,
         };
-        self.clamp_share = Vec3::zeros();
-        let mut slips = vec![0.0; m];
-        let mut states: Vec<State> = self.points().iter().map(|p| p.state).collect();
-        if m > 0 {
-            let mut g_free = vec![0.0; 3 * m];
-            for (i, g) in geo.iter().enumerate() {
-                let u = g.gap + self.needle_motion(&g.needle, &dz) - Self::tissue_motion(g, &dx);
-                (0..3).for_each(|r| g_free[3 * i + r] = g.frame[r].dot(&u));
+        let bounds = self.bounds(&xt);
+        let states: Vec<State> = self.points().iter().map(|p| p.state).collect();
+        let (dz, dx, sol) = match self.solver {
+            LcpSolver::Schur => self.solve_schur(&lin, &geo, &bounds, &states),
+            LcpSolver::Cg { tolerance } => {
+                let (dz, dx, sol, cg) = self.solve_cg(&lin, &geo, &bounds, &states, tolerance);
+                self.stats.linear_iterations += cg.iterations;
+                self.stats.max_linear_iterations = self.stats.max_linear_iterations.max(cg.iterations);
+                self.stats.linear_unconverged += cg.unconverged;
+                stats.converged &= cg.unconverged == 0;
+                (dz, dx, sol)
             }
-            let w = self.delassus(&geo);
-            let sol = lcp::solve(&w, &g_free, &self.bounds(&xt), &states, TAU_CHECK, MAX_TRIALS);
+        };
+        self.clamp_share = Vec3::zeros();
+        let mut slips = vec![0.0; geo.len()];
+        let mut new_states = states;
+        if let Some(sol) = sol {
             self.stats.steps += 1;
             self.stats.trials += sol.trials;
             self.stats.max_trials = self.stats.max_trials.max(sol.trials);
@@ -501,30 +757,21 @@ impl Model for NeedleModel {
             };
             self.stats.unresolved += usize::from(!sol.consistent);
             stats.iterations = sol.trials as u32;
-            stats.converged = sol.consistent;
-            // Final solves with the constraint forces on both sides.
-            let mut rn: Vec<f64> = self.rod.linear_residual().iter().map(|g| -g).collect();
-            let mut rt = lin.residual().to_vec();
+            stats.converged &= sol.consistent;
+            let mut unused = vec![0.0; self.rod.free_dofs()];
             let mut clamp = Vec3::zeros();
             for (i, g) in geo.iter().enumerate() {
                 let f: Vec3 = (0..3).map(|r| g.frame[r] * sol.lambda[3 * i + r]).sum();
-                self.add_needle(&g.needle, &f, &mut rn, &mut clamp);
-                for a in 0..4 {
-                    (0..3).for_each(|c| rt[3 * g.tissue[a] + c] -= g.w[a] * f[c]);
-                }
+                self.add_needle(&g.needle, &f, &mut unused, &mut clamp);
                 slips[i] = sol.gap[3 * i];
                 stats.residual = stats.residual.max(sol.gap[3 * i + 1].hypot(sol.gap[3 * i + 2]));
             }
             self.clamp_share = clamp;
-            self.rod.solve_linear(&mut rn);
-            self.fem.solve_linear(&mut rt);
-            dz = rn;
-            dx = rt;
-            states = sol.states;
+            new_states = sol.states;
         }
         self.fem.end_linear_step(lin, &dx)?;
         self.rod.end_linear_step(dt, &dz)?;
-        self.update_points(&states, &slips);
+        self.update_points(&new_states, &slips);
         Ok(stats)
     }
 
@@ -575,6 +822,13 @@ impl Model for NeedleModel {
         d.insert("lcp_unresolved_steps".into(), s.unresolved as f64);
         d.insert("tip_fallback_steps".into(), s.tip_fallbacks as f64);
         d.insert("tip_lost".into(), s.tip_lost as f64);
+        // The seed's Table 3 "linear-solver iterations": only the CG solver has them.
+        if matches!(self.solver, LcpSolver::Cg { .. }) {
+            let steps = s.all_steps.max(1) as f64;
+            d.insert("cg_iterations_mean".into(), s.linear_iterations as f64 / steps);
+            d.insert("cg_iterations_max".into(), s.max_linear_iterations as f64);
+            d.insert("cg_unconverged_solves".into(), s.linear_unconverged as f64);
+        }
         d
     }
 }

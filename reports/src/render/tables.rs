@@ -331,26 +331,52 @@ const VIBRATION_METRICS: [(&str, &str); 4] = [
     ("amplitude_loss_rel", "amplitude loss [1]"),
 ];
 
+/// The friction-state LCP's work per needle run (the needle seed's Table 3,
+/// Chentanez et al. 2009: trials per step min/mean/max, and the CG
+/// iterations of its solver), from the model's diagnostics.
+const LCP_METRICS: [(&str, &str); 6] = [
+    ("diag_lcp_trials_min", "LCP trials min"),
+    ("diag_lcp_trials_mean", "LCP trials mean"),
+    ("diag_lcp_trials_max", "LCP trials max"),
+    ("diag_lcp_unresolved_steps", "steps unresolved"),
+    ("diag_cg_iterations_mean", "CG iterations per step, mean"),
+    ("diag_cg_iterations_max", "CG iterations per step, max"),
+];
+
+/// The seed's own numbers for [`LCP_METRICS`], to read the table against.
+const LCP_SEED_NOTE: &str = "The needle seed (Chentanez et al. 2009, Tables 2-3) reports 1.41 LCP trials per frame on average and 10 at most, 205-413 CG iterations per solve, and a 130.9 ms frame on 1 thread (38.5 ms on 7) at 13,375 tets; its LCP took 75-83 % of the frame. A dash in the CG columns: the run solved its trials through the Schur complement (lcp_solver=schur), without CG.";
+
 /// Period, damping and phase of every ok run, when the group's runs report
 /// them (free-vibration scenes); `None` for the others.
 fn vibration_table(g: &Group) -> Option<Block> {
+    metrics_table(g, &VIBRATION_METRICS)
+}
+
+/// One row per ok run that reports any of `metrics`: model, fidelity, the
+/// median ms/step, and the metrics (blank where a run lacks one); `None`
+/// when no run reports them.
+fn metrics_table(g: &Group, metrics: &[(&str, &str)]) -> Option<Block> {
     let ok: Vec<&ResultRow> = g
         .rows
         .iter()
         .copied()
-        .filter(|r| r.status == Status::Ok && VIBRATION_METRICS.iter().any(|(m, _)| r.metrics.contains_key(*m)))
+        .filter(|r| r.status == Status::Ok && metrics.iter().any(|(m, _)| r.metrics.contains_key(*m)))
         .collect();
     if ok.is_empty() {
         return None;
     }
-    let mut header = vec!["model".to_string(), "fidelity".to_string()];
-    header.extend(VIBRATION_METRICS.iter().map(|(_, h)| h.to_string()));
+    let mut header = vec!["model".to_string(), "fidelity".to_string(), "ms/step".to_string()];
+    header.extend(metrics.iter().map(|(_, h)| h.to_string()));
     let rows = ok
         .iter()
         .map(|r| {
-            let mut row = vec![Cell::plain(&r.model), Cell::plain(short_settings(&r.fidelity))];
+            let mut row = vec![
+                Cell::plain(&r.model),
+                Cell::plain(short_settings(&r.fidelity)),
+                Cell::plain(num(r.ms_per_step_median)),
+            ];
             row.extend(
-                VIBRATION_METRICS
+                metrics
                     .iter()
                     .map(|(m, _)| Cell::plain(num(r.metrics.get(*m).copied()))),
             );
@@ -454,6 +480,14 @@ fn scenario_section(g: &Group, sec: &Section, st: &Styles, info: &RunInfo) -> Ve
     b.push(scenario_table(g, st));
     if let Some(t) = vibration_table(g) {
         b.push(Block::Heading(3, "Period and damping (ok runs)".into()));
+        b.push(t);
+    }
+    if let Some(t) = metrics_table(g, &LCP_METRICS) {
+        b.push(Block::Heading(
+            3,
+            "Friction-state LCP per run (the needle seed's Table 3)".into(),
+        ));
+        b.push(Block::Para(LCP_SEED_NOTE.into()));
         b.push(t);
     }
     let others: BTreeSet<&str> = g

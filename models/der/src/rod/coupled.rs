@@ -54,6 +54,17 @@ impl DerRod {
         self.band.solve(b);
     }
 
+    /// `y = H x` over the free DOFs with the step's Hessian (the one
+    /// [`Self::solve_linear`] inverts): the product of an iterative solver.
+    pub fn apply_linear(&self, x: &[f64], y: &mut [f64]) {
+        self.band.mul(x, y);
+    }
+
+    /// The diagonal of the step's Hessian over the free DOFs (Jacobi).
+    pub fn linear_diagonal(&self) -> Vec<f64> {
+        (0..self.band.dim()).map(|i| self.band.get(i, i)).collect()
+    }
+
     /// Number of free DOFs (the length of the vectors above).
     pub fn free_dofs(&self) -> usize {
         self.q.len() - CLAMPED_DOFS

@@ -316,3 +316,24 @@ fn chunk_sums(r: &[f64], z: &[f64], part: &mut [[f64; 2]]) {
             *pc = [rz, rr];
         });
 }
+
+impl System {
+    /// `y = A x` with `A = c_k K + c_m diag(mass)` on the free DOFs (rows of
+    /// constrained DOFs zero; `x` must be zero there), by the kernel of
+    /// [`pcg`]: deterministic for any thread count.
+    #[allow(clippy::too_many_arguments)]
+    pub fn apply(&mut self, pat: &Pattern, k: &[M3], c_k: f64, mass: &[f64], c_m: f64, x: &[f64], y: &mut [f64]) {
+        let op = Op {
+            pat,
+            k,
+            c_k,
+            mass,
+            c_m,
+            mask: &self.mask,
+        };
+        let part = &mut self.work.part;
+        part.clear();
+        part.resize(x.len().div_ceil(3 * CG_CHUNK), [0.0; 2]);
+        op.apply_dot(x, y, part);
+    }
+}

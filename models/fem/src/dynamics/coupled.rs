@@ -17,6 +17,7 @@ pub struct LinearStep {
     u: Update,
     r: Vec<f64>,
     c_k: f64,
+    c_m: f64,
     t_end: f64,
 }
 
@@ -34,6 +35,14 @@ impl FemModel {
     /// factorize `A` unless the cached factor is still exact. Only the
     /// Cholesky solver, a dynamic integrator and no sphere contact.
     pub fn begin_linear_step(&mut self, dt: f64, s: f64) -> Result<LinearStep, SimError> {
+        self.begin_linear_step_with(dt, s, true)
+    }
+
+    /// [`Self::begin_linear_step`], factorizing `A` only if `factor`: a
+    /// caller that solves by [`Self::apply_linear`] alone (an iterative
+    /// solver) skips the Cholesky. A skipped factorization leaves no stale
+    /// factor behind: the next factored step refactorizes.
+    pub fn begin_linear_step_with(&mut self, dt: f64, s: f64, factor: bool) -> Result<LinearStep, SimError> {
         if !(dt > 0.0 && dt.is_finite() && s.is_finite()) {
             return Err(self.fail(format!("bad step dt={dt} s, command {s}")));
         }
@@ -59,7 +68,12 @@ impl FemModel {
         self.last_updated = st.updated;
         let r = self.dynamic_residual(&u, &xn, s);
         let exact = self.cached == Some((c_k, c_m)) && self.sys.has_factorization();
-        if !exact || st.updated > 0 || self.factor_has_contact {
+        let stale = !exact || st.updated > 0 || self.factor_has_contact;
+        if !factor {
+            if stale {
+                self.cached = None;
+            }
+        } else if stale {
             let none = ContactBlocks {
                 at: Vec::new(),
                 blocks: Vec::new(),
@@ -67,7 +81,47 @@ impl FemModel {
             };
             self.refactorize(&none, None, (c_k, c_m), ord, t_end)?;
         }
-        Ok(LinearStep { xn, u, r, c_k, t_end })
+        Ok(LinearStep {
+            xn,
+            u,
+            r,
+            c_k,
+            c_m,
+            t_end,
+        })
+    }
+
+    /// `y = A x` on the free DOFs with the step's matrix `A = c_k K + c_m M`
+    /// (`x`, `y`: `3 * nodes` entries; `x` must be zero on constrained DOFs,
+    /// `y` is zero there). The product of the CG solver of the tissue.
+    pub fn apply_linear(&mut self, step: &LinearStep, x: &[f64], y: &mut [f64]) {
+        self.sys.apply(
+            &self.solid.pat,
+            &self.solid.kmat,
+            step.c_k,
+            &self.solid.mass,
+            step.c_m,
+            x,
+            y,
+        );
+    }
+
+    /// The diagonal of the step's `A` (`3 * nodes` entries, 1 on
+    /// constrained DOFs): a Jacobi preconditioner.
+    pub fn linear_diagonal(&self, step: &LinearStep) -> Vec<f64> {
+        let pat = &self.solid.pat;
+        let mut d = vec![1.0; 3 * pat.n];
+        for n in 0..pat.n {
+            let Some(bi) = (pat.row_ptr[n]..pat.row_ptr[n + 1]).find(|&bi| pat.col[bi] == n) else {
+                continue;
+            };
+            for c in 0..3 {
+                if self.sys.free[3 * n + c] {
+                    d[3 * n + c] = step.c_k * self.solid.kmat[bi][(c, c)] + step.c_m * self.solid.mass[n];
+                }
+            }
+        }
+        d
     }
 
     /// `A^{-1} b` on the free DOFs with the step's factor (`b`: `3 * nodes`
