@@ -207,16 +207,23 @@ fn expand(grid: &Grid) -> Result<Vec<Fidelity>, UsageError> {
 /// `scene`), checked before anything runs: the instance at its mesh level
 /// (geometry may depend on the fidelity), its knobs against the model's
 /// declared keys and choices, its step count at the full fidelity's `dt`.
+/// `levels`: the mesh levels already instantiated for this scenario entry
+/// (scenarios read only `mesh_level` of the fidelity, and building a fine
+/// mesh takes seconds: each level is built once per entry).
 fn check_point(
     sc: &dyn Scenario,
     params: &Params,
     scene: &Scene,
     f: &dyn ModelFactory,
     fid: &Fidelity,
+    levels: &mut std::collections::BTreeSet<usize>,
 ) -> Result<(), UsageError> {
     let named = |e: String| UsageError(format!("scenario `{}`, model `{}`: {e}", sc.id(), f.id()));
-    if fid.mesh_level.is_some() {
+    if let Some(level) = fid.mesh_level
+        && !levels.contains(&level)
+    {
         sc.instantiate_at(params, fid)?;
+        levels.insert(level);
     }
     fid.validate_extras(f.fidelity_keys()).map_err(|e| named(e.0))?;
     if let Some(dt) = f.default_fidelity(scene).merged(fid).dt {
@@ -379,6 +386,7 @@ impl Comparison {
             let overrides: Vec<(String, f64)> = entry.params.iter().map(|(k, v)| (k.clone(), *v)).collect();
             let params = Params::resolve(sc.id(), sc.params(), &overrides)?;
             let inst = sc.instantiate(&params)?;
+            let mut levels = std::collections::BTreeSet::new();
             for m in entry.models.keys() {
                 registry::model(m)?;
             }
@@ -416,7 +424,7 @@ impl Comparison {
                 let fixed = expand(&me.fidelity.iter().map(|(k, v)| (k.clone(), vec![v.clone()])).collect())?;
                 for fid in sweep {
                     let fid = fid.merged(&fixed[0]);
-                    check_point(sc, &params, inst.scene(), f, &fid)?;
+                    check_point(sc, &params, inst.scene(), f, &fid, &mut levels)?;
                     jobs.push(Job {
                         scenario: sc.id().into(),
                         params: overrides.clone(),

@@ -25,27 +25,39 @@ pub const STEPS: usize = 20;
 /// failure, so a fix shows up.
 pub type KnownDefect = (&'static str, &'static str, &'static str);
 
-/// Each catalogue scenario `f` accepts, at default parameters. Tip loads a
-/// scene ramps up later (capstan: once threaded) are applied in full from
-/// the start, so the few conformance steps run the loaded contact path.
-pub fn supported(f: &dyn ModelFactory) -> Vec<(String, Scene)> {
-    let mut v = Vec::new();
-    for sc in registry::scenarios() {
-        let Ok(p) = Params::resolve(sc.id(), sc.params(), &[]) else {
-            continue;
-        };
-        let Ok(run) = sc.instantiate(&p) else { continue };
-        let mut scene = run.scene().clone();
-        for b in &mut scene.bodies {
-            if let Body::Rod(r) = b {
-                r.tip_load_ramp = None;
+/// Every catalogue scenario at default parameters, instantiated once per
+/// process (building meshes and loading references takes seconds; the
+/// suite asks for them once per model and check). Tip loads a scene ramps
+/// up later (capstan: once threaded) are applied in full from the start, so
+/// the few conformance steps run the loaded contact path.
+fn catalogue() -> &'static [(String, Scene)] {
+    static SCENES: std::sync::OnceLock<Vec<(String, Scene)>> = std::sync::OnceLock::new();
+    SCENES.get_or_init(|| {
+        let mut v = Vec::new();
+        for sc in registry::scenarios() {
+            let Ok(p) = Params::resolve(sc.id(), sc.params(), &[]) else {
+                continue;
+            };
+            let Ok(run) = sc.instantiate(&p) else { continue };
+            let mut scene = run.scene().clone();
+            for b in &mut scene.bodies {
+                if let Body::Rod(r) = b {
+                    r.tip_load_ramp = None;
+                }
             }
-        }
-        if f.check(&scene).is_ok() {
             v.push((sc.id().to_string(), scene));
         }
-    }
-    v
+        v
+    })
+}
+
+/// Each catalogue scenario `f` accepts, at default parameters ([`catalogue`]).
+pub fn supported(f: &dyn ModelFactory) -> Vec<(String, Scene)> {
+    catalogue()
+        .iter()
+        .filter(|(_, scene)| f.check(scene).is_ok())
+        .cloned()
+        .collect()
 }
 
 /// The model's default fidelity with 8 rod segments.

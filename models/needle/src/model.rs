@@ -83,6 +83,8 @@ pub struct LcpStats {
     pub linear_iterations: usize,
     /// Most CG iterations in one step.
     pub max_linear_iterations: usize,
+    /// CG solves (each step's unconstrained solve and one per trial).
+    pub linear_solves: usize,
     /// CG solves that stopped at the iteration limit above the tolerance.
     pub linear_unconverged: usize,
 }
@@ -509,6 +511,7 @@ impl NeedleModel {
 /// stopped at the limit.
 struct CgWork {
     iterations: usize,
+    solves: usize,
     unconverged: usize,
 }
 
@@ -616,6 +619,7 @@ impl NeedleModel {
         let max_iter = 4 * n;
         let mut work = CgWork {
             iterations: 0,
+            solves: 0,
             unconverged: 0,
         };
         let (rod, fem) = (&self.rod, &mut self.fem);
@@ -643,6 +647,7 @@ impl NeedleModel {
         )
         .expect("no rows, nothing dependent");
         work.iterations += free.iterations;
+        work.solves += 1;
         work.unconverged += usize::from(!free.converged);
         let split = |y: Vec<f64>| {
             let mut dz = y;
@@ -699,6 +704,7 @@ impl NeedleModel {
                 max_iter,
             )?;
             work.iterations += out.iterations;
+            work.solves += 1;
             work.unconverged += usize::from(!out.converged);
             for (&r, l) in eq.iter().zip(&out.lambda) {
                 lambda[r] = *l;
@@ -737,6 +743,7 @@ impl Model for NeedleModel {
             LcpSolver::Cg { tolerance } => {
                 let (dz, dx, sol, cg) = self.solve_cg(&lin, &geo, &bounds, &states, tolerance);
                 self.stats.linear_iterations += cg.iterations;
+                self.stats.linear_solves += cg.solves;
                 self.stats.max_linear_iterations = self.stats.max_linear_iterations.max(cg.iterations);
                 self.stats.linear_unconverged += cg.unconverged;
                 stats.converged &= cg.unconverged == 0;
@@ -827,6 +834,10 @@ impl Model for NeedleModel {
             let steps = s.all_steps.max(1) as f64;
             d.insert("cg_iterations_mean".into(), s.linear_iterations as f64 / steps);
             d.insert("cg_iterations_max".into(), s.max_linear_iterations as f64);
+            d.insert(
+                "cg_iterations_per_solve".into(),
+                s.linear_iterations as f64 / s.linear_solves.max(1) as f64,
+            );
             d.insert("cg_unconverged_solves".into(), s.linear_unconverged as f64);
         }
         d
