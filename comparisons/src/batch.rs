@@ -499,6 +499,7 @@ pub fn run_info(comparison: &str, opts: &BatchOptions) -> RunInfo {
         quick: opts.quick,
         wall_s: 0.0,
         python_models: BTreeMap::new(),
+        fitted: BTreeMap::new(),
         targets: BTreeMap::new(),
         budgets_ms: opts.budgets_ms.clone(),
     }
@@ -512,6 +513,17 @@ pub fn python_models<'a>(rows: impl IntoIterator<Item = &'a ResultRow>) -> BTree
         .into_iter()
         .filter(|r| r.krate == crate::registry::PYTHON && ran.contains(r.factory.id()))
         .map(|r| (r.factory.id().to_string(), r.factory.description().to_string()))
+        .collect()
+}
+
+/// The models of `rows` whose settings rest on a fitted constant, by id,
+/// with what was fitted on which case (`ModelFactory::fitted`).
+pub fn fitted_models<'a>(rows: impl IntoIterator<Item = &'a ResultRow>) -> BTreeMap<String, String> {
+    let ran: std::collections::BTreeSet<&str> = rows.into_iter().map(|r| r.model.as_str()).collect();
+    crate::registry::models()
+        .into_iter()
+        .filter(|r| ran.contains(r.factory.id()))
+        .filter_map(|r| Some((r.factory.id().to_string(), r.factory.fitted()?.to_string())))
         .collect()
 }
 
@@ -649,6 +661,7 @@ pub fn run_comparison(c: &Comparison, opts: &BatchOptions) -> Result<Vec<ResultR
         let mut info = run_info(&c.name, opts);
         info.wall_s = started.elapsed().as_secs_f64();
         info.python_models = python_models(&rows);
+        info.fitted = fitted_models(&rows);
         info.targets = targets;
         surgbench_reports::write_results_csv(&tmp.join("results.csv"), &rows)
             .map_err(|e| BatchError::Io(e.to_string()))?;

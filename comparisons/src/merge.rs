@@ -189,6 +189,7 @@ fn merged_info(g: &Gathered, opts: &MergeOptions) -> RunInfo {
         quick: plan.is_some_and(|p| p.quick),
         wall_s: g.records.iter().map(|r| r.wall_s).sum(),
         python_models: batch::python_models(g.rows.iter().map(|(r, _)| r)),
+        fitted: batch::fitted_models(g.rows.iter().map(|(r, _)| r)),
         targets: plan.map(|p| p.targets.clone()).unwrap_or_default(),
         budgets_ms: surgbench_reports::DEFAULT_BUDGETS_MS.to_vec(),
     }

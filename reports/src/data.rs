@@ -124,6 +124,10 @@ pub struct RunInfo {
     /// with their description: the page marks them, since their timings
     /// include the interpreter.
     pub python_models: BTreeMap<String, String>,
+    /// Models whose settings rest on a fitted constant, by id, with what was
+    /// fitted on which case ([`surgbench_core`]'s `ModelFactory::fitted`):
+    /// the page says so. Empty in reports written before it existed.
+    pub fitted: BTreeMap<String, String>,
     /// Accuracy target of each scenario by id: the largest primary error a
     /// user of that scene would accept (the report's verdict table). Empty
     /// in reports written before targets existed: no verdicts then.

@@ -417,3 +417,22 @@ fn force_over_time_is_drawn_where_the_series_has_a_reference_force() {
     assert!(dir.join("plots/cantilever-gravity-force-time.svg").is_file());
     assert!(read(&dir.join("report.md")).contains("best ok run is scored on, over simulated time"));
 }
+
+/// A model whose settings rest on a fitted constant is named in the run
+/// table with what was fitted; a report without one has no such row.
+#[test]
+fn fitted_constants_are_stated_in_the_run_table() {
+    let tmp = tempfile::tempdir().unwrap();
+    let rows = common::rows();
+    let mut info = common::info();
+    render(tmp.path(), &rows, &info).unwrap();
+    assert!(!read(&tmp.path().join("index.html")).contains("fitted, not derived"));
+    info.fitted.insert(
+        "chainmail".into(),
+        "C = 1214.297 fitted on a calibration cantilever".into(),
+    );
+    render(tmp.path(), &rows, &info).unwrap();
+    let html = read(&tmp.path().join("index.html"));
+    assert!(html.contains("fitted, not derived"), "no fitted row");
+    assert!(html.contains("chainmail: C = 1214.297 fitted on a calibration cantilever"));
+}

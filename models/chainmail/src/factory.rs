@@ -125,6 +125,13 @@ impl ModelFactory for ChainmailFactory {
     fn description(&self) -> &'static str {
         "generalized 3D chain-mail guidewire (geometric valid boxes + relaxation; boxes in the clamp frame, the paper's world axes with frame=world)"
     }
+    /// The weight mapping's one constant ([`crate::mapping::BETA_CONSTANT`],
+    /// fitted by [`crate::calibration`]).
+    fn fitted(&self) -> Option<&'static str> {
+        Some(
+            "beta_mapping=weight (the default in static scenes): C = 1214.297 in beta = C w Delta^3 / (E I), fitted so that a 0.1 m gravity cantilever (r = 0.5 mm, E = 50 GPa) at 20 segments and dt = 10 ms sags as Euler-Bernoulli; resolution-bound: at 40 segments the 0.2 m cantilever sags 0.14 of Euler-Bernoulli. beta_mapping=navigation fits nothing",
+        )
+    }
     fn family(&self) -> Family {
         Family::Rod
     }

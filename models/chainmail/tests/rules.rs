@@ -237,3 +237,18 @@ fn rigid_motion_of_the_scene_base_frame_passes_world_frame_fails() {
     // the paper's world-axis boxes are not: the answer changes by far more
     assert!(world > 1e-5, "world-axis rule unexpectedly invariant: {world}");
 }
+
+/// The report states the fit (`ModelFactory::fitted`): its text names the
+/// committed constant and the calibration length, so it cannot drift from them.
+#[test]
+fn the_fitted_note_names_the_committed_fit() {
+    use surgbench_core::ModelFactory;
+    let note = surgbench_chainmail::ChainmailFactory
+        .fitted()
+        .expect("the weight mapping is fitted");
+    assert!(note.contains(&format!("C = {BETA_CONSTANT}")), "{note}");
+    assert!(
+        note.contains(&format!("{} m gravity cantilever", calibration::CALIBRATION_LENGTH)),
+        "{note}"
+    );
+}

@@ -140,6 +140,13 @@ pub trait ModelFactory: Send + Sync {
     fn id(&self) -> &'static str;
     /// One-line human description.
     fn description(&self) -> &'static str;
+    /// What the model's settings fit to data instead of deriving: the
+    /// constant, the case it was fitted on (never a scored scene) and the
+    /// settings it applies to. The report lists it beside the results, so a
+    /// reader knows which numbers rest on a calibration. `None`: nothing fitted.
+    fn fitted(&self) -> Option<&'static str> {
+        None
+    }
     /// Family for grouping.
     fn family(&self) -> Family;
     /// What the model can simulate.

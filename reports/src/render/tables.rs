@@ -304,15 +304,24 @@ fn run_table(info: &RunInfo) -> Block {
             },
         ),
     ];
-    if !info.python_models.is_empty() {
-        let listed: Vec<String> = info.python_models.iter().map(|(id, d)| format!("{id}: {d}")).collect();
-        rows.push(kv(
+    // Per-model notes: `id: text; id: text (what they mean)`.
+    let notes = [
+        (
+            &info.fitted,
+            "fitted, not derived",
+            "each constant fitted once on the case named, which no comparison scores",
+        ),
+        (
+            &info.python_models,
             "models written in Python",
-            format!(
-                "{} (run through the Python bindings: their step times include the interpreter)",
-                listed.join("; ")
-            ),
-        ));
+            "run through the Python bindings: their step times include the interpreter",
+        ),
+    ];
+    for (by_model, key, meaning) in notes {
+        if !by_model.is_empty() {
+            let listed: Vec<String> = by_model.iter().map(|(id, d)| format!("{id}: {d}")).collect();
+            rows.push(kv(key, format!("{} ({meaning})", listed.join("; "))));
+        }
     }
     Block::Table {
         header: vec!["run".into(), "".into()],

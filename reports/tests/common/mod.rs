@@ -180,6 +180,7 @@ pub fn info() -> RunInfo {
         quick: true,
         wall_s: 12.5,
         python_models: BTreeMap::new(),
+        fitted: BTreeMap::new(),
         ..RunInfo::default()
     }
 }
