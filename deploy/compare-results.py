@@ -16,6 +16,7 @@ import sys
 TIMING = {
     "ms_per_step_median",
     "ms_per_step_p95",
+    "ms_per_step_max",
     "steps_per_s",
     "real_time_factor",
     "peak_rss_mb",

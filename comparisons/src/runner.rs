@@ -600,6 +600,7 @@ fn record_timing(o: &mut Outcome, reps: &Repeats) {
         let total: f64 = times.iter().sum();
         o.ms_per_step_median = Some(percentile(&sorted, 0.5));
         o.ms_per_step_p95 = Some(percentile(&sorted, 0.95));
+        o.ms_per_step_max = sorted.last().copied();
         o.steps_per_s = Some(times.len() as f64 / (total / 1e3));
         let dt = rep.t / rep.steps as f64;
         o.real_time_factor = Some(times.len() as f64 * dt / (total / 1e3));

@@ -199,12 +199,35 @@ pub const FIXED_COLUMNS: [&str; 29] = [
 
 /// Columns of `results.csv` written only when some row fills them and read
 /// when present: `host`, the machine each run's timings come from (a
-/// report merged from several machines' shards).
-pub const OPTIONAL_COLUMNS: [&str; 1] = ["host"];
+/// report merged from several machines' shards), and `ms_per_step_max`,
+/// the slowest step (absent from reports written before it existed).
+pub const OPTIONAL_COLUMNS: [&str; 2] = ["host", "ms_per_step_max"];
 
 /// Whether `name` is a fixed or optional column (never a metric).
 fn is_column(name: &str) -> bool {
     FIXED_COLUMNS.contains(&name) || OPTIONAL_COLUMNS.contains(&name)
+}
+
+/// The text of optional column `i` (index into [`OPTIONAL_COLUMNS`]) of
+/// `row`; empty when the row does not fill it.
+fn optional_text(row: &ResultRow, i: usize) -> String {
+    match i {
+        0 => row.host.clone(),
+        1 => row.outcome.ms_per_step_max.map(format_f64).unwrap_or_default(),
+        _ => unreachable!("OPTIONAL_COLUMNS has 2 entries"),
+    }
+}
+
+/// Sets optional column `i` of `row` from its `results.csv` text.
+fn set_optional(row: &mut ResultRow, i: usize, text: &str) -> Result<(), String> {
+    match i {
+        0 => {
+            row.host = text.to_string();
+            Ok(())
+        }
+        1 => parse_f64(text).map(|x| row.outcome.ms_per_step_max = x),
+        _ => unreachable!("OPTIONAL_COLUMNS has 2 entries"),
+    }
 }
 
 /// A field of [`ResultRow`] seen as a CSV cell.
@@ -286,8 +309,8 @@ fn parse_bool(s: &str) -> Result<Option<bool>, String> {
 
 /// Writes `rows` to `path` as the tidy `results.csv`.
 ///
-/// Header: the [`FIXED_COLUMNS`] in order, then `host` when any row names
-/// one ([`OPTIONAL_COLUMNS`]), then one column per metric name (union over
+/// Header: the [`FIXED_COLUMNS`] in order, then each of the
+/// [`OPTIONAL_COLUMNS`] some row fills, then one column per metric name (union over
 /// all rows, sorted). `None` and absent metrics are empty cells.
 /// A metric named like a fixed column, or with an empty name, is refused
 /// ([`ReportError::Invalid`]) because it could not be read back unambiguously.
@@ -302,20 +325,21 @@ pub fn write_results_csv(path: &Path, rows: &[ResultRow]) -> Result<(), ReportEr
         }
     }
     let mut w = csv::Writer::from_path(path).map_err(|e| ReportError::csv(path, e))?;
-    let with_host = rows.iter().any(|r| !r.host.is_empty());
+    // The optional columns some row fills.
+    let optional: Vec<usize> = (0..OPTIONAL_COLUMNS.len())
+        .filter(|&i| rows.iter().any(|r| !optional_text(r, i).is_empty()))
+        .collect();
     let header: Vec<&str> = FIXED_COLUMNS
         .iter()
         .copied()
-        .chain(with_host.then_some(OPTIONAL_COLUMNS[0]))
+        .chain(optional.iter().map(|&i| OPTIONAL_COLUMNS[i]))
         .chain(metric_names.iter().copied())
         .collect();
     w.write_record(&header).map_err(|e| ReportError::csv(path, e))?;
     for row in rows {
         let mut row = row.clone();
         let mut rec: Vec<String> = (0..FIXED_COLUMNS.len()).map(|i| fixed_text(&mut row, i)).collect();
-        if with_host {
-            rec.push(row.host.clone());
-        }
+        rec.extend(optional.iter().map(|&i| optional_text(&row, i)));
         for m in &metric_names {
             rec.push(row.metrics.get(*m).copied().map(format_f64).unwrap_or_default());
         }
@@ -351,7 +375,7 @@ fn set_fixed(row: &mut ResultRow, i: usize, text: &str) -> Result<(), String> {
 }
 
 /// One row as the cells `results.csv` would hold, by column name: every
-/// fixed column, `host` when set, and each metric. Numbers are in the
+/// fixed column, each optional column the row fills, and each metric. Numbers are in the
 /// round-trip form of [`format_f64`], so [`row_from_cells`] gives back the
 /// same row bit for bit (a sharded run's point files store rows this way).
 pub fn row_cells(row: &ResultRow) -> BTreeMap<String, String> {
@@ -359,8 +383,11 @@ pub fn row_cells(row: &ResultRow) -> BTreeMap<String, String> {
     let mut out: BTreeMap<String, String> = (0..FIXED_COLUMNS.len())
         .map(|i| (FIXED_COLUMNS[i].to_string(), fixed_text(&mut row, i)))
         .collect();
-    if !row.host.is_empty() {
-        out.insert(OPTIONAL_COLUMNS[0].into(), row.host.clone());
+    for (i, name) in OPTIONAL_COLUMNS.iter().enumerate() {
+        let text = optional_text(&row, i);
+        if !text.is_empty() {
+            out.insert((*name).into(), text);
+        }
     }
     for (k, v) in &row.metrics {
         out.insert(k.clone(), format_f64(*v));
@@ -377,7 +404,11 @@ pub fn row_from_cells(cells: &BTreeMap<String, String>) -> Result<ResultRow, Str
         let text = cells.get(*name).ok_or_else(|| format!("missing column `{name}`"))?;
         set_fixed(&mut row, i, text).map_err(|m| format!("column `{name}`: {m}"))?;
     }
-    row.host = cells.get(OPTIONAL_COLUMNS[0]).cloned().unwrap_or_default();
+    for (i, name) in OPTIONAL_COLUMNS.iter().enumerate() {
+        if let Some(text) = cells.get(*name) {
+            set_optional(&mut row, i, text).map_err(|m| format!("column `{name}`: {m}"))?;
+        }
+    }
     for (name, text) in cells.iter().filter(|(k, _)| !is_column(k)) {
         if let Some(v) = parse_f64(text).map_err(|m| format!("column `{name}`: {m}"))? {
             row.metrics.insert(name.clone(), v);
@@ -424,7 +455,12 @@ pub fn read_results_csv(path: &Path) -> Result<Vec<ResultRow>, ReportError> {
             .position(|h| h == name)
             .ok_or_else(|| ReportError::parse(path, 1, name, "missing required column"))?;
     }
-    let host_col = header.iter().position(|h| h == OPTIONAL_COLUMNS[0]);
+    // (index into OPTIONAL_COLUMNS, position in the header) of those present.
+    let optional: Vec<(usize, usize)> = OPTIONAL_COLUMNS
+        .iter()
+        .enumerate()
+        .filter_map(|(i, name)| Some((i, header.iter().position(|h| h == name)?)))
+        .collect();
     let metric_cols: Vec<(usize, &str)> = header
         .iter()
         .enumerate()
@@ -452,8 +488,8 @@ pub fn read_results_csv(path: &Path) -> Result<Vec<ResultRow>, ReportError> {
         for (i, &j) in fixed.iter().enumerate() {
             set_fixed(&mut row, i, &rec[j]).map_err(|m| ReportError::parse(path, line, FIXED_COLUMNS[i], m))?;
         }
-        if let Some(j) = host_col {
-            row.host = rec[j].to_string();
+        for &(i, j) in &optional {
+            set_optional(&mut row, i, &rec[j]).map_err(|m| ReportError::parse(path, line, OPTIONAL_COLUMNS[i], m))?;
         }
         for &(j, name) in &metric_cols {
             if let Some(v) = parse_f64(&rec[j]).map_err(|m| ReportError::parse(path, line, name, m))? {

@@ -173,6 +173,11 @@ pub struct Outcome {
     pub ms_per_step_median: Option<f64>,
     /// 95th percentile wall time per step (ms).
     pub ms_per_step_p95: Option<f64>,
+    /// Slowest step after warm-up, over every repeat (ms): what a haptic
+    /// loop's deadline has to survive. Missing in reports written before it
+    /// existed (`results.csv`'s optional `ms_per_step_max` column).
+    #[serde(default)]
+    pub ms_per_step_max: Option<f64>,
     /// Steps per wall-clock second (1/s).
     pub steps_per_s: Option<f64>,
     /// Simulated seconds per wall-clock second (dimensionless; >= 1 is real time).

@@ -303,3 +303,56 @@ fn metrics_map_is_sorted_union() {
     assert_eq!(back[0].metrics, BTreeMap::from([("z_m".to_string(), 1.0)]));
     assert_eq!(back[1].metrics, BTreeMap::from([("a_rel".to_string(), 2.0)]));
 }
+
+/// The optional columns (`host`, `ms_per_step_max`) are written only when
+/// some row fills them, read back exactly, and absent from an older file
+/// without harm (`None`, `""`).
+#[test]
+fn optional_columns_round_trip_and_may_be_absent() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("results.csv");
+    let mut rows = common::rows();
+    rows[0].outcome.ms_per_step_max = Some(0.1 + 0.2);
+    rows[1].host = "node1".into();
+    write_results_csv(&path, &rows).unwrap();
+    let text = fs::read_to_string(&path).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    assert_eq!(
+        &header[FIXED_COLUMNS.len()..FIXED_COLUMNS.len() + 2],
+        &["host", "ms_per_step_max"]
+    );
+    let back = read_results_csv(&path).unwrap();
+    assert_eq!(back, rows);
+    assert_eq!(
+        back[0].outcome.ms_per_step_max.map(f64::to_bits),
+        Some((0.1f64 + 0.2).to_bits())
+    );
+    // The cells a sharded run stores, and back.
+    for r in &rows {
+        assert_eq!(
+            &surgbench_reports::row_from_cells(&surgbench_reports::row_cells(r)).unwrap(),
+            r
+        );
+    }
+    // Without either: no such columns, and reading gives None / "".
+    let plain = common::rows();
+    write_results_csv(&path, &plain).unwrap();
+    let text = fs::read_to_string(&path).unwrap();
+    assert!(!text.lines().next().unwrap().contains("ms_per_step_max"));
+    let back = read_results_csv(&path).unwrap();
+    assert!(
+        back.iter()
+            .all(|r| r.outcome.ms_per_step_max.is_none() && r.host.is_empty())
+    );
+    // A malformed slowest step is named like any numeric cell.
+    let bad = text.replacen('\n', ",ms_per_step_max\n", 1);
+    let bad: String = bad
+        .lines()
+        .enumerate()
+        .map(|(i, l)| if i == 0 { l.to_string() } else { format!("{l},fast") })
+        .collect::<Vec<_>>()
+        .join("\n");
+    fs::write(&path, bad + "\n").unwrap();
+    let err = read_results_csv(&path).unwrap_err().to_string();
+    assert!(err.contains("ms_per_step_max"), "{err}");
+}

@@ -194,6 +194,7 @@ fn without_timings(rows: &[ResultRow]) -> Vec<ResultRow> {
             let mut r = r.clone();
             r.ms_per_step_median = None;
             r.ms_per_step_p95 = None;
+            r.ms_per_step_max = None;
             r.steps_per_s = None;
             r.real_time_factor = None;
             r.peak_rss_mb = None;

@@ -96,7 +96,7 @@ fn scenario_table(g: &Group, st: &Styles) -> Block {
             g.metric_label()
         },
         "ms/step median".into(),
-        "ms/step p95".into(),
+        "ms/step p95 / max".into(),
         "real-time factor".into(),
         "solver iters mean / max".into(),
         "peak RSS [MiB]".into(),
@@ -158,7 +158,10 @@ fn scenario_table(g: &Group, st: &Styles) -> Block {
             },
             err_cell,
             t_cell,
-            Cell::plain(num(r.ms_per_step_p95)),
+            Cell::plain(match (r.ms_per_step_p95, r.ms_per_step_max) {
+                (p95, None) => num(p95),
+                (p95, max) => format!("{} / {}", num(p95), num(max)),
+            }),
             Cell::plain(num(r.real_time_factor)),
             Cell::plain(iters),
             Cell::plain(num(r.peak_rss_mb)),
