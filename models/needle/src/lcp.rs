@@ -73,6 +73,17 @@ pub struct Solution {
     pub chosen: usize,
 }
 
+/// The known tangential force (N, on the needle) of a point sliding in
+/// `state`: `-forward` sliding forward, `+backward` sliding back; `None`
+/// for a stuck point, whose force is unknown.
+pub fn coulomb(state: State, bounds: &Bounds) -> Option<f64> {
+    match state {
+        State::Static => None,
+        State::DynamicPlus => Some(-bounds.forward),
+        State::DynamicMinus => Some(bounds.backward),
+    }
+}
+
 /// Solve the equality system of one configuration: returns `(lambda, gap)`,
 /// or `None` if the active block of `w` is not positive definite.
 fn solve_configuration(
@@ -87,12 +98,7 @@ fn solve_configuration(
     // Sliding rows with viscous friction: (row, 1 / c_i, Coulomb force).
     let mut viscous = Vec::new();
     for (i, s) in states.iter().enumerate() {
-        let coulomb = match s {
-            State::Static => None,
-            State::DynamicPlus => Some(-bounds[i].forward),
-            State::DynamicMinus => Some(bounds[i].backward),
-        };
-        match coulomb {
+        match coulomb(*s, &bounds[i]) {
             Some(f) if bounds[i].viscous > 0.0 => {
                 viscous.push((active.len(), 1.0 / bounds[i].viscous, f));
                 active.push(3 * i);

@@ -98,6 +98,13 @@ struct Geometry {
     gap: Vec3,
 }
 
+impl Geometry {
+    /// The world force (N) of frame components `lambda` (`[t, n1, n2]`).
+    fn force(&self, lambda: &[f64]) -> Vec3 {
+        (0..3).map(|r| self.frame[r] * lambda[r]).sum()
+    }
+}
+
 /// The coupled needle-tissue model (module docs).
 pub struct NeedleModel {
     fem: FemModel,
@@ -545,7 +552,7 @@ impl NeedleModel {
         let mut rt = lin.residual().to_vec();
         let mut clamp = Vec3::zeros();
         for (i, g) in geo.iter().enumerate() {
-            let f: Vec3 = (0..3).map(|r| g.frame[r] * sol.lambda[3 * i + r]).sum();
+            let f = g.force(&sol.lambda[3 * i..3 * i + 3]);
             self.add_needle(&g.needle, &f, &mut rn, &mut clamp);
             for a in 0..4 {
                 (0..3).for_each(|c| rt[3 * g.tissue[a] + c] -= g.w[a] * f[c]);
@@ -622,6 +629,7 @@ impl NeedleModel {
             solves: 0,
             unconverged: 0,
         };
+        let row_dot = |r: usize, y: &[f64]| rows[r].iter().map(|&(k, a)| a * y[k]).sum::<f64>();
         let (rod, fem) = (&self.rod, &mut self.fem);
         let mut tissue_out = vec![0.0; nt];
         // `out = K x + sum over viscous rows c J_r^T (J_r x)`.
@@ -630,7 +638,7 @@ impl NeedleModel {
             fem.apply_linear(lin, &x[nf..], &mut tissue_out);
             out[nf..].copy_from_slice(&tissue_out);
             for &(r, c) in viscous {
-                let jx: f64 = rows[r].iter().map(|&(k, a)| a * x[k]).sum();
+                let jx = row_dot(r, x);
                 rows[r].iter().for_each(|&(k, a)| out[k] += c * a * jx);
             }
         };
@@ -658,7 +666,6 @@ impl NeedleModel {
             let (dz, dx) = split(y_free);
             return (dz, dx, None, work);
         }
-        let row_dot = |r: usize, y: &[f64]| rows[r].iter().map(|&(k, a)| a * y[k]).sum::<f64>();
         let g_free: Vec<f64> = (0..rows.len()).map(|r| gap0[r] + row_dot(r, &y_free)).collect();
         let mut trials: Vec<Vec<f64>> = Vec::new();
         let configuration = |states: &[State]| {
@@ -667,13 +674,8 @@ impl NeedleModel {
             let mut diag_t = diag.clone();
             let (mut eq, mut viscous, mut sliding) = (Vec::new(), Vec::new(), Vec::new());
             for (i, st) in states.iter().enumerate() {
-                let coulomb = match st {
-                    State::Static => None,
-                    State::DynamicPlus => Some(-bounds[i].forward),
-                    State::DynamicMinus => Some(bounds[i].backward),
-                };
                 let r = 3 * i;
-                match coulomb {
+                match lcp::coulomb(*st, &bounds[i]) {
                     // Viscous slip: lambda = f - c g with g = gap0 + J y, so
                     // (K + c J^T J) y = b + J^T (f - c gap0).
                     Some(f) => {
@@ -768,7 +770,7 @@ impl Model for NeedleModel {
             let mut unused = vec![0.0; self.rod.free_dofs()];
             let mut clamp = Vec3::zeros();
             for (i, g) in geo.iter().enumerate() {
-                let f: Vec3 = (0..3).map(|r| g.frame[r] * sol.lambda[3 * i + r]).sum();
+                let f = g.force(&sol.lambda[3 * i..3 * i + 3]);
                 self.add_needle(&g.needle, &f, &mut unused, &mut clamp);
                 slips[i] = sol.gap[3 * i];
                 stats.residual = stats.residual.max(sol.gap[3 * i + 1].hypot(sol.gap[3 * i + 2]));
