@@ -804,6 +804,8 @@ fn cmd_gate_workload(a: &GateWorkloadArgs) -> Result<(), Failure> {
         params: parse_overrides(&s.params)?.into_iter().collect(),
         fidelity: fidelity.pairs().into_iter().collect(),
         steps: a.steps,
+        static_solve: false,
+        gate: true,
     };
     gate::run_workload(&w, a.steps)?;
     Ok(())

@@ -275,7 +275,9 @@ fn the_series_carries_the_scored_force_and_hertz() {
     .unwrap();
     assert_eq!(s.status, "ok", "{}", s.reason);
     let scored: Vec<_> = s.series.iter().filter(|x| x.force[1].is_finite()).collect();
-    assert!(scored.len() > 10, "{} samples with a reference force", scored.len());
+    // One sample per load step (8 of SPHERE_DT over the ramp) and the step
+    // that finds the state unchanged and settles.
+    assert!(scored.len() >= 9, "{} samples with a reference force", scored.len());
     for x in &scored {
         assert_eq!(x.force[0], 4.0 * x.hand_force[2], "t = {}", x.t);
     }

@@ -159,6 +159,14 @@ pub trait ModelFactory: Send + Sync {
     /// Fidelity used for knobs the caller leaves unset.
     fn default_fidelity(&self, scene: &Scene) -> Fidelity;
 
+    /// Defaults that depend on what the caller chose: called by [`resolve`]
+    /// with the request and the merged fidelity (defaults overlaid with the
+    /// request), before the extras are checked. E.g. a tissue model whose
+    /// static default is one step to the whole load restores the dynamic
+    /// time step when the caller picks a dynamic integrator and no `dt`.
+    /// The default changes nothing.
+    fn complete_defaults(&self, _scene: &Scene, _requested: &Fidelity, _merged: &mut Fidelity) {}
+
     /// Can the model run this scene? Default: every required capability is
     /// supported; otherwise [`Unsupported`] names the missing ones.
     fn check(&self, scene: &Scene) -> Result<(), Unsupported> {
@@ -195,7 +203,9 @@ pub fn resolve<F: ModelFactory + ?Sized>(
     requested.build_check_extras(keys)?;
     factory.check(scene)?;
     scene.validate().map_err(|e| BuildError::bad("scene", e))?;
-    Settings::new(factory.default_fidelity(scene).merged(requested), keys)
+    let mut merged = factory.default_fidelity(scene).merged(requested);
+    factory.complete_defaults(scene, requested, &mut merged);
+    Settings::new(merged, keys)
 }
 
 /// `Ok` if `have` covers every capability `scene` requires; otherwise

@@ -408,6 +408,26 @@ impl Scene {
         })
     }
 
+    /// The time (s) from which nothing the scene prescribes changes any
+    /// more: the last key of the control timeline and of every rod's tip
+    /// load ramp, and the settle rule's `min_time`; `None` when a moving
+    /// vessel keeps changing it. A quasi-static model can reach this
+    /// scene's equilibrium in one step to this time, and a step that starts
+    /// after it and leaves the state unchanged has found that equilibrium.
+    pub fn inputs_held_from(&self) -> Option<f64> {
+        if self.environment.vessel_motion.is_some() {
+            return None;
+        }
+        let controls = self.control.keys.last().map_or(0.0, |k| k.t);
+        let ramps = self
+            .rods()
+            .filter_map(|r| r.tip_load_ramp.as_ref())
+            .filter_map(|r| r.keys.last().map(|k| k.0))
+            .fold(0.0, f64::max);
+        let min_time = self.settle.map_or(0.0, |s| s.min_time);
+        Some(controls.max(ramps).max(min_time).max(0.0))
+    }
+
     /// Capabilities a model needs to run this scene, sorted.
     pub fn required_capabilities(&self) -> Vec<Capability> {
         let mut c = Vec::new();

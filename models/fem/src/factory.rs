@@ -7,7 +7,8 @@ use crate::dynamics::{DynParams, FemModel, Integrator, REUSE_TOL};
 use crate::material::Law;
 use surgbench_core::sphere_contact::DEFAULT_KAPPA;
 use surgbench_core::{
-    BuildError, Capability, Choice, Family, Fidelity, FidelityKey, Model, ModelFactory, Scene, Settings, TissueBody,
+    BuildError, Capability, Choice, Family, Fidelity, FidelityKey, Model, ModelFactory, Scene, Setting, Settings,
+    TissueBody,
 };
 
 /// The `fem` model: corotational (default), linear or neo-Hookean tetrahedra.
@@ -31,7 +32,7 @@ const KEYS: &[FidelityKey] = &[
             Choice::new("backward-euler", "backward Euler"),
             Choice::new(
                 "quasi-static",
-                "static equilibrium every step (default when the scene settles)",
+                "static equilibrium every step by adaptive load stepping (default when the scene settles, then one step to the end of its loads)",
             ),
         ],
     ),
@@ -56,7 +57,7 @@ const KEYS: &[FidelityKey] = &[
     FidelityKey::number("cg_tol", "PCG relative residual tolerance (default 1e-8)").between(0.0, 1.0),
     FidelityKey::switch(
         "factor_reuse",
-        "Cholesky: 1 (default) = while Jacobian blocks changed, CG preconditioned by the last factor (refactor when it ages), 0 = refactor whenever a block changed",
+        "Cholesky: 1 (default) = dynamic steps: while Jacobian blocks changed, CG preconditioned by the last factor (refactor when it ages); quasi-static: modified Newton, the last factor while each iteration at least quarters the residual; 0 = refactor whenever a block changed / at every Newton iteration",
     ),
     FidelityKey::number(
         "reuse_tol",
@@ -155,8 +156,13 @@ impl ModelFactory for FemFactory {
     fn fidelity_keys(&self) -> &'static [FidelityKey] {
         KEYS
     }
-    /// `dt = 1 ms`; one Newton iteration per dynamic step, up to 30 for a
-    /// settling (quasi-static) scene. The mesh is the scene's.
+    /// Dynamic scenes: `dt = 1 ms`, one Newton iteration per step. A
+    /// settling scene is solved as a static problem: quasi-static, and one
+    /// step to the time its loads stop changing
+    /// ([`Scene::inputs_held_from`], at most half the duration), inside
+    /// which the adaptive load stepping picks the increments (up to 30
+    /// Newton iterations each); the runner's next step finds the state
+    /// unchanged and ends the run as settled. The mesh is the scene's.
     fn default_fidelity(&self, scene: &Scene) -> Fidelity {
         let mut f = Fidelity {
             dt: Some(1e-3),
@@ -165,10 +171,22 @@ impl ModelFactory for FemFactory {
         if scene.settle.is_some() {
             f.iterations = Some(30);
             f.extras.insert("integrator".into(), "quasi-static".into());
+            if let Some(held) = scene.inputs_held_from().filter(|&t| t > 0.0) {
+                f.dt = Some(held.min(0.5 * scene.duration));
+            }
         } else {
             f.iterations = Some(1);
         }
         f
+    }
+    /// A settling scene run with a dynamic integrator the caller picked,
+    /// and no `dt`: the dynamic default `dt = 1 ms`, not the static one
+    /// step to the whole load.
+    fn complete_defaults(&self, _scene: &Scene, requested: &Fidelity, merged: &mut Fidelity) {
+        let dynamic = matches!(merged.extras.get("integrator"), Some(Setting::Choice(c)) if c != "quasi-static");
+        if requested.dt.is_none() && dynamic {
+            merged.dt = Some(1e-3);
+        }
     }
     fn build_resolved(&self, scene: &Scene, settings: &Settings) -> Result<Box<dyn Model>, BuildError> {
         let tissues: Vec<&TissueBody> = scene.tissues().collect();

@@ -4,9 +4,12 @@
 //! invertible after Irving et al. 2004, small-strain linear, compressible
 //! neo-Hookean), lumped mass, Rayleigh damping, implicit Newmark
 //! (`beta = 1/4, gamma = 1/2`) and backward Euler time stepping with a fixed
-//! number of Newton iterations per step, and quasi-static solves (full
-//! Newton, load stepping; the harness model halves a failing load increment
-//! up to six times) through [`solve_static`]. Linear systems go to
+//! number of Newton iterations per step, and quasi-static solves (Newton,
+//! load stepping) through [`solve_static`]; the harness model solves a
+//! settling scene as one static problem, its load increments adaptive
+//! (start with the whole load, halve a failing one down to 1/1024, double
+//! a fast one) and its Newton modified (the last factorization reused while
+//! it quarters the residual per iteration). Linear systems go to
 //! faer's sparse Cholesky (symbolic analysis once, numeric factorization
 //! reused while the matrix is unchanged) or to a block-Jacobi preconditioned
 //! conjugate gradient. Assembly runs on a private rayon pool and is

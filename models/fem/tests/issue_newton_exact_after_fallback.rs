@@ -26,10 +26,14 @@ use common::{cosine_ramp, truth_cube_body};
 /// Ramp to `strain` over 250 steps and hold 5; Newton iterations of every step
 /// and the final model.
 fn ramp(law: Law, strain: f64) -> (Vec<u32>, FemModel) {
+    // Full Newton at every iteration: this is a test of Newton's own
+    // convergence (modified Newton, the default `factor_reuse`, converges
+    // linearly by design and is tested in `tests/statics_as_statics.rs`).
     let p = DynParams {
         integrator: Integrator::QuasiStatic,
         iterations: 30,
         law,
+        factor_reuse: false,
         ..Default::default()
     };
     let body = truth_cube_body(strain, 4);

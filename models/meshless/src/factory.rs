@@ -3,7 +3,8 @@
 
 use crate::model::MeshlessTissue;
 use surgbench_core::{
-    BuildError, Capability, Choice, Family, Fidelity, FidelityKey, Model, ModelFactory, Scene, Settings, Unsupported,
+    BuildError, Capability, Choice, Family, Fidelity, FidelityKey, Model, ModelFactory, Scene, Setting, Settings,
+    Unsupported,
 };
 
 /// Fidelity extras of `meshless` (besides `dt` and `iterations` = PBD sweeps).
@@ -31,7 +32,7 @@ pub const MESHLESS_KEYS: &[FidelityKey] = &[
             Choice::new("backward-euler", "backward Euler by Newton-CG (default dynamic)"),
             Choice::new(
                 "quasi-static",
-                "static equilibrium every step by Newton-CG (default when the scene settles)",
+                "static equilibrium every step by Newton-CG with adaptive load stepping (default when the scene settles, then one step to the end of its loads)",
             ),
         ],
     ),
@@ -88,11 +89,30 @@ impl ModelFactory for MeshlessFactory {
     fn fidelity_keys(&self) -> &'static [FidelityKey] {
         MESHLESS_KEYS
     }
-    fn default_fidelity(&self, _scene: &Scene) -> Fidelity {
-        Fidelity {
+    /// `dt = 1 ms` and 5 PBD iterations; a settling scene is solved as a
+    /// static problem (quasi-static, the default integrator there): one
+    /// step to the time its loads stop changing
+    /// ([`Scene::inputs_held_from`], at most half the duration), inside
+    /// which the adaptive load stepping picks the increments.
+    fn default_fidelity(&self, scene: &Scene) -> Fidelity {
+        let mut f = Fidelity {
             dt: Some(1e-3),
             iterations: Some(5),
             ..Default::default()
+        };
+        if scene.settle.is_some()
+            && let Some(held) = scene.inputs_held_from().filter(|&t| t > 0.0)
+        {
+            f.dt = Some(held.min(0.5 * scene.duration));
+        }
+        f
+    }
+    /// A settling scene run with a dynamic integrator the caller picked,
+    /// and no `dt`: the dynamic default `dt = 1 ms`.
+    fn complete_defaults(&self, _scene: &Scene, requested: &Fidelity, merged: &mut Fidelity) {
+        let dynamic = matches!(merged.extras.get("integrator"), Some(Setting::Choice(c)) if c != "quasi-static");
+        if requested.dt.is_none() && dynamic {
+            merged.dt = Some(1e-3);
         }
     }
     fn check(&self, scene: &Scene) -> Result<(), Unsupported> {

@@ -411,6 +411,16 @@ impl System {
         self.chol.as_ref().is_some_and(|c| c.valid)
     }
 
+    /// Stop offering the cached factorization ([`Self::has_factorization`]
+    /// turns false until the next [`Self::factorize`]): a solve that must
+    /// depend only on its own inputs (a restored state steps as the saved
+    /// one did) starts without a factor from earlier work.
+    pub fn forget_factorization(&mut self) {
+        if let Some(c) = &mut self.chol {
+            c.valid = false;
+        }
+    }
+
     /// Symbolic Cholesky analysis of the free-DOF pattern under `ordering`
     /// (not [`Ordering::Auto`], which [`Self::factorize`] resolves).
     fn symbolic(&self, pat: &Pattern, ordering: Ordering) -> Result<SymbolicCholesky<usize>, String> {

@@ -62,10 +62,20 @@ pub use coupled::LinearStep;
 /// itself is 6.0e-2 away from the converged implicit step: five orders of
 /// magnitude below the scheme's own error.
 pub const REUSE_TOL: f64 = 1e-6;
-/// Most halvings of a quasi-static load increment (down to 1/64 of it).
-const MAX_HALVINGS: usize = 6;
-/// Iteration cap of that CG; past it the matrix is refactorized.
-const REUSE_ITERS: usize = 25;
+/// Smallest quasi-static load increment, as halvings of the step's whole
+/// load change: ten reach 1/1024 of it. A failed solve at that size ends
+/// the step with the error, as do [`MAX_FAILURES`] failed solves in one
+/// step (a load past a limit point otherwise creeps towards it forever).
+const MAX_HALVINGS: i32 = 10;
+/// Most failed Newton solves in one quasi-static step.
+const MAX_FAILURES: usize = 3 * MAX_HALVINGS as usize;
+/// A quasi-static load increment whose Newton solve took at most this
+/// many iterations doubles for the next one: a solve this fast started in
+/// Newton's quadratic range, so the next increment can be larger (the
+/// increment control of Crisfield, Non-linear Finite Element Analysis of
+/// Solids and Structures, vol. 1, Sec. 9.5: scale the increment by the
+/// ratio of desired to used iterations).
+const FAST_NEWTON: usize = 4;
 /// Refactorize on the next step once the stale-factor CG solves since the
 /// last factorization exceed one per step by this many in total: a numeric
 /// factorization costs about 53 forward/backward solves on the bench block
@@ -73,6 +83,8 @@ const REUSE_ITERS: usize = 25;
 /// extra solves have cost one factorization keeps the total within twice
 /// that of the best refresh schedule in hindsight (the ski-rental bound).
 const REFRESH_EXCESS: usize = 50;
+/// Iteration cap of that CG; past it the matrix is refactorized.
+const REUSE_ITERS: usize = 25;
 
 /// Time integrator.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -185,6 +197,12 @@ pub struct FemModel {
     pub last_updated: usize,
     /// Command (load factor) of the last completed step.
     s_last: f64,
+    /// Quasi-static load stepping so far (reported as diagnostics).
+    statics: LoadStepping,
+    /// Quasi-static: the command and external forces the current state is
+    /// the equilibrium of, and that solve's relative residual (`None`
+    /// before the first solve; saved and restored with the state).
+    solved_for: Option<(f64, Vec<Vec3>, f64)>,
     /// The rigid sphere (its path) and its penalty contact, centred where
     /// the last step's command put it.
     contact: Option<(surgbench_core::scene::SphereIndenter, SphereContact)>,
@@ -192,6 +210,19 @@ pub struct FemModel {
     /// bounding-box centre. `x`, the rest positions and the sphere are
     /// stored relative to it.
     origin: Vec3,
+}
+
+/// What the quasi-static load stepping did over a run.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct LoadStepping {
+    /// Load increments solved to equilibrium (a step whose command did not
+    /// change solves none).
+    increments: usize,
+    /// Newton solves that failed and were retried with half the increment.
+    failures: usize,
+    /// Numeric Cholesky factorizations of the accepted increments' Newton
+    /// iterations (modified Newton reuses one while it serves).
+    factorizations: usize,
 }
 
 /// The integrator's affine update rules of one step:
@@ -353,6 +384,8 @@ impl FemModel {
             factor_has_contact: false,
             last_updated: 0,
             s_last: 0.0,
+            statics: LoadStepping::default(),
+            solved_for: None,
             contact,
             origin,
         })
@@ -408,6 +441,21 @@ impl FemModel {
     /// stepping ([`Self::load_steps`]), then the hand force (the reaction
     /// on the driven nodes plus the force on the sphere) and zero velocities.
     fn quasi_static_step(&mut self, s: f64, t_end: f64) -> Result<StepStats, SimError> {
+        // The same command and external forces as the last solve: the state
+        // is already their equilibrium (re-solving could only move it within
+        // the Newton tolerance, and keeps a static run from ever repeating
+        // its state exactly).
+        if let Some((_, _, residual)) = self
+            .solved_for
+            .as_ref()
+            .filter(|(s0, e, _)| *s0 == s && *e == self.external)
+        {
+            return Ok(StepStats {
+                iterations: 0,
+                residual: *residual,
+                converged: true,
+            });
+        }
         let res = self.load_steps(s);
         let nt = res.map_err(|e| SimError::SolverFailed {
             t: t_end,
@@ -432,6 +480,7 @@ impl FemModel {
         self.inverted = nt.inverted;
         self.v.iter_mut().for_each(|v| *v = Vec3::zeros());
         self.a.iter_mut().for_each(|a| *a = Vec3::zeros());
+        self.solved_for = Some((s, self.external.clone(), nt.residual));
         Ok(StepStats {
             iterations: nt.iterations as u32,
             residual: nt.residual,
@@ -440,10 +489,14 @@ impl FemModel {
     }
 
     /// Adaptive load stepping from the last converged command `s_last` to
-    /// `s`: when Newton fails (not converged, or inverted neo-Hookean
-    /// elements), restart from the last converged state with half the
-    /// increment, at most [`MAX_HALVINGS`] times; after a success keep the
-    /// increment that worked. Leaves the positions reached in `self.x`.
+    /// `s`, starting with the whole change: when Newton fails (not
+    /// converged in `iterations`, or inverted neo-Hookean elements),
+    /// restart from the last converged state with half the increment,
+    /// down to [`MAX_HALVINGS`] halvings of the whole change and at most
+    /// [`MAX_FAILURES`] times in all; after a success in at most
+    /// [`FAST_NEWTON`] iterations that did not follow a failure, double it.
+    /// Leaves the positions reached in `self.x`; counts the accepted
+    /// increments and the failed solves in `self.statics`.
     fn load_steps(&mut self, s: f64) -> Result<Newton, FemError> {
         let load: Vec<f64> = self
             .gravity_load
@@ -457,11 +510,18 @@ impl FemModel {
             max_newton: self.p.iterations.max(1),
             solver: self.p.solver,
             threads: self.p.threads,
+            factor_reuse: self.p.factor_reuse,
         };
         let mut x = std::mem::take(&mut self.x);
         let mut x_ok = x.clone();
+        // Modified Newton reuses factorizations within this step only, so
+        // that the step depends on the state alone (a restored state steps
+        // bit for bit as the saved one did).
+        self.sys.forget_factorization();
+        self.cached = None;
         let (mut lo, mut h) = (self.s_last, s - self.s_last);
-        let mut halvings = 0;
+        let h_min = (s - self.s_last).abs() * 0.5f64.powi(MAX_HALVINGS);
+        let (mut failures, mut failed) = (0, 0);
         let mut its = 0;
         let res = loop {
             let hi = if (s - lo).abs() <= h.abs() { s } else { lo + h };
@@ -482,17 +542,28 @@ impl FemModel {
             }
             let con = self.contact.as_ref().map(|c| &c.1);
             match equilibrate(&mut self.solid, &mut self.sys, &mut x, &load, fol, con, &sp, 1) {
-                Ok(nt) if hi == s => {
-                    its += nt.iterations;
-                    break Ok(nt);
-                }
                 Ok(nt) => {
                     its += nt.iterations;
+                    self.statics.factorizations += nt.factorizations;
+                    if hi != lo {
+                        self.statics.increments += 1;
+                    }
+                    if hi == s {
+                        break Ok(nt);
+                    }
                     lo = hi;
                     x_ok.clone_from(&x);
+                    if nt.iterations <= FAST_NEWTON && failures == 0 {
+                        h *= 2.0;
+                    }
+                    failures = 0;
                 }
-                Err(FemError::NotConverged { .. } | FemError::Inverted { .. }) if halvings < MAX_HALVINGS => {
-                    halvings += 1;
+                Err(FemError::NotConverged { .. } | FemError::Inverted { .. })
+                    if 0.5 * h.abs() >= h_min && failed < MAX_FAILURES =>
+                {
+                    failures += 1;
+                    failed += 1;
+                    self.statics.failures += 1;
                     h *= 0.5;
                     x.clone_from(&x_ok);
                 }

@@ -33,6 +33,21 @@ impl Model for FemModel {
         self.dt
     }
 
+    /// Quasi-static runs: the load increments the adaptive load stepping
+    /// solved (`load_increments`) and the Newton solves it retried with
+    /// half the increment (`load_increment_failures`), and the Cholesky
+    /// factorizations of the accepted increments (`factorizations`), over
+    /// the whole run; nothing for the dynamic integrators.
+    fn diagnostics(&self) -> std::collections::BTreeMap<String, f64> {
+        let mut d = std::collections::BTreeMap::new();
+        if self.p.integrator == Integrator::QuasiStatic {
+            d.insert("load_increments".into(), self.statics.increments as f64);
+            d.insert("load_increment_failures".into(), self.statics.failures as f64);
+            d.insert("factorizations".into(), self.statics.factorizations as f64);
+        }
+        d
+    }
+
     fn energy_probe(&mut self) -> Option<&mut dyn EnergyProbe> {
         Some(self)
     }
@@ -60,6 +75,7 @@ impl Model for FemModel {
             hand_force: self.hand_force,
             inverted: self.inverted,
             external: self.external.clone(),
+            solved_for: self.solved_for.clone(),
         }))
     }
 
@@ -75,6 +91,7 @@ impl Model for FemModel {
         self.hand_force = s.hand_force;
         self.inverted = s.inverted;
         self.external.clone_from(&s.external);
+        self.solved_for.clone_from(&s.solved_for);
         Ok(())
     }
 }
@@ -89,6 +106,7 @@ struct FemState {
     hand_force: Vec3,
     inverted: usize,
     external: Vec<Vec3>,
+    solved_for: Option<(f64, Vec<Vec3>, f64)>,
 }
 
 impl EnergyProbe for FemModel {

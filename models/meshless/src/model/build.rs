@@ -106,6 +106,7 @@ impl MeshlessTissue {
             forces_at_x: false,
             pressure: PressureLoad::new(&body.pressure_faces),
             load_scale: 0.0,
+            load_stepping: (0, 0),
             pforces: vec![Vec3::zeros(); nn],
             contact,
             el,

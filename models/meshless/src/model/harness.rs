@@ -6,11 +6,23 @@ use crate::elastic::StateCache;
 use surgbench_core::coupling::check_surface_forces;
 use surgbench_core::{DeviceCommand, EnergyProbe, Model, Observation, SimError, StepStats, TissueObs, Vec3};
 
+/// Smallest quasi-static load increment, as halvings of the step's whole
+/// load change (ten: 1/1024 of it); past it, or after [`MAX_FAILURES`]
+/// failed solves in one step, the step gives up (the FEM model's rule).
+const MAX_HALVINGS: i32 = 10;
+/// Most failed Newton solves in one quasi-static step.
+const MAX_FAILURES: usize = 3 * MAX_HALVINGS as usize;
+/// A quasi-static increment solved in at most this many Newton iterations
+/// doubles the next (the FEM model's rule: Crisfield, Non-linear Finite
+/// Element Analysis of Solids and Structures, vol. 1, Sec. 9.5).
+const FAST_NEWTON: usize = 4;
+
 impl Model for MeshlessTissue {
     fn step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
         SimError::check_dt(self.time, dt)?;
         let n = self.x.len();
         let xn = self.x.clone();
+        let last_load = self.load_scale;
         self.load_scale = cmd.load;
         if let Some(c) = &mut self.contact {
             c.set_load(cmd.load);
@@ -24,7 +36,8 @@ impl Model for MeshlessTissue {
                     converged: true,
                 }
             }
-            Integrator::BackwardEuler | Integrator::QuasiStatic => self.implicit_step(&xn, dt, cmd.load)?,
+            Integrator::BackwardEuler => self.implicit_step(&xn, dt, cmd.load)?,
+            Integrator::QuasiStatic => self.static_step(&xn, dt, last_load, cmd.load)?,
         };
         if let Some(pbd) = &self.pbd {
             let w: Vec<f64> = (0..n)
@@ -128,13 +141,21 @@ impl Model for MeshlessTissue {
     /// The MLS surface's distance from the node surface it maps (m):
     /// `mls_surface_error_rms_m`, `mls_surface_error_max_m` over the surface
     /// particles, the error the mapping adds on its own in this state.
+    /// Quasi-static runs add the load increments their load stepping
+    /// solved (`load_increments`) and the Newton solves it retried with
+    /// half the increment (`load_increment_failures`).
     fn diagnostics(&self) -> std::collections::BTreeMap<String, f64> {
         let e = self.surface_mapping_errors();
-        [
+        let mut d: std::collections::BTreeMap<String, f64> = [
             ("mls_surface_error_rms_m".to_string(), e.rms),
             ("mls_surface_error_max_m".to_string(), e.max),
         ]
-        .into()
+        .into();
+        if self.set.integrator == Integrator::QuasiStatic {
+            d.insert("load_increments".into(), self.load_stepping.0 as f64);
+            d.insert("load_increment_failures".into(), self.load_stepping.1 as f64);
+        }
+        d
     }
 }
 
@@ -204,6 +225,66 @@ impl MeshlessTissue {
         let mut x = std::mem::take(&mut self.x);
         self.apply_targets(&mut x, load);
         self.x = x;
+    }
+
+    /// Quasi-static step from the equilibrium `xn` at the command
+    /// `last_load` to the command `load`, by adaptive load stepping as the
+    /// FEM model does it: first the whole change; a Newton solve that does
+    /// not converge (50 iterations) is retried from the last equilibrium
+    /// with half the increment, down to [`MAX_HALVINGS`] halvings of the
+    /// whole change and at most [`MAX_FAILURES`] times in all; a
+    /// solve in at most [`FAST_NEWTON`] iterations that did not follow a
+    /// failure doubles the next increment. Should the halvings run out, the
+    /// last equilibrium is solved at `load` once more and the step reports
+    /// that solve, unconverged, as a single Newton solve did before.
+    fn static_step(&mut self, xn: &[Vec3], dt: f64, last_load: f64, load: f64) -> Result<StepStats, SimError> {
+        let (mut lo, mut h) = (last_load, load - last_load);
+        let mut x_ok = xn.to_vec();
+        let h_min = h.abs() * 0.5f64.powi(MAX_HALVINGS);
+        let (mut failures, mut failed, mut iterations) = (0, 0, 0);
+        loop {
+            let hi = if (load - lo).abs() <= h.abs() { load } else { lo + h };
+            let mut stats = self.solve_at(&x_ok, dt, hi)?;
+            iterations += stats.iterations;
+            if stats.converged && hi != lo {
+                self.load_stepping.0 += 1;
+            }
+            if hi == load && (stats.converged || hi == lo) {
+                stats.iterations = iterations;
+                return Ok(stats);
+            }
+            if stats.converged {
+                lo = hi;
+                x_ok.clone_from(&self.x);
+                if stats.iterations as usize <= FAST_NEWTON && failures == 0 {
+                    h *= 2.0;
+                }
+                failures = 0;
+            } else if 0.5 * h.abs() >= h_min && failed < MAX_FAILURES {
+                failures += 1;
+                failed += 1;
+                self.load_stepping.1 += 1;
+                h *= 0.5;
+                self.x.clone_from(&x_ok);
+            } else {
+                // Halvings used up: the whole remaining change once more
+                // from the last equilibrium, reported unconverged.
+                self.x.clone_from(&x_ok);
+                let mut last = self.solve_at(&x_ok, dt, load)?;
+                last.iterations += iterations;
+                return Ok(last);
+            }
+        }
+    }
+
+    /// Newton from the current positions with the load factor `load`
+    /// (pressure, sphere position, held nodes).
+    fn solve_at(&mut self, xn: &[Vec3], dt: f64, load: f64) -> Result<StepStats, SimError> {
+        self.load_scale = load;
+        if let Some(c) = &mut self.contact {
+            c.set_load(load);
+        }
+        self.implicit_step(xn, dt, load)
     }
 
     /// Backward Euler (or quasi-static) step from `xn` of length `dt` (s):

@@ -336,6 +336,10 @@ pub struct MeshlessTissue {
     pressure: PressureLoad,
     /// Load factor of the pressure this step (the command's `load`).
     load_scale: f64,
+    /// Quasi-static load stepping so far: increments solved to
+    /// equilibrium and failed solves retried with half the increment
+    /// (reported as diagnostics).
+    load_stepping: (usize, usize),
     /// Pressure nodal forces at the last gradient evaluation (N).
     pforces: Vec<Vec3>,
     /// Penalty contact with the scene's rigid sphere, if any, centred where
