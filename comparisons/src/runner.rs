@@ -439,17 +439,23 @@ fn run_repeat(
             break;
         }
         let settled = scene.settle.is_some_and(|s| {
+            if t < s.min_time {
+                return false;
+            }
+            // Each measure once per step, and only when the rule reaches it.
+            let disp = std::cell::OnceCell::new();
+            let displacement = || *disp.get_or_init(|| max_displacement(&initial, &obs, &radii));
             // A fixed point counts once the model has moved at all: one that
             // ignores its loads would otherwise pass for one at equilibrium.
             let fixed_point = k >= 1
                 && held_from.is_some_and(|h| k as f64 * dt >= h)
                 && unmoved(&rep.last, &obs)
-                && max_displacement(&initial, &obs, &radii) > 0.0;
-            let speed = || obs.max_speed().max(surface_spin_speed(&rep.last, &obs, dt, &radii));
-            (k + 1 >= MIN_SETTLE_STEPS || fixed_point)
-                && t >= s.min_time
-                && speed() < s.velocity_tol
-                && speed() * t <= SETTLE_REL * max_displacement(&initial, &obs, &radii)
+                && displacement() > 0.0;
+            if k + 1 < MIN_SETTLE_STEPS && !fixed_point {
+                return false;
+            }
+            let speed = obs.max_speed().max(surface_spin_speed(&rep.last, &obs, dt, &radii));
+            speed < s.velocity_tol && speed * t <= SETTLE_REL * displacement()
         });
         if record && (k % every == every - 1 || settled || k + 1 == max_steps) {
             rep.series.push(sample(&obs, scorer.as_ref(), primary));

@@ -40,6 +40,7 @@ pub mod scene;
 pub mod sdf;
 pub mod settings;
 pub mod sphere_contact;
+pub mod statics;
 pub mod vessel;
 
 pub use capability::{Capability, Family};

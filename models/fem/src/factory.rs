@@ -6,9 +6,9 @@ use crate::assembly::{LinearSolver, Ordering};
 use crate::dynamics::{DynParams, FemModel, Integrator, REUSE_TOL};
 use crate::material::Law;
 use surgbench_core::sphere_contact::DEFAULT_KAPPA;
+use surgbench_core::statics;
 use surgbench_core::{
-    BuildError, Capability, Choice, Family, Fidelity, FidelityKey, Model, ModelFactory, Scene, Setting, Settings,
-    TissueBody,
+    BuildError, Capability, Choice, Family, Fidelity, FidelityKey, Model, ModelFactory, Scene, Settings, TissueBody,
 };
 
 /// The `fem` model: corotational (default), linear or neo-Hookean tetrahedra.
@@ -171,8 +171,8 @@ impl ModelFactory for FemFactory {
         if scene.settle.is_some() {
             f.iterations = Some(30);
             f.extras.insert("integrator".into(), "quasi-static".into());
-            if let Some(held) = scene.inputs_held_from().filter(|&t| t > 0.0) {
-                f.dt = Some(held.min(0.5 * scene.duration));
+            if let Some(dt) = statics::static_dt(scene) {
+                f.dt = Some(dt);
             }
         } else {
             f.iterations = Some(1);
@@ -183,10 +183,7 @@ impl ModelFactory for FemFactory {
     /// and no `dt`: the dynamic default `dt = 1 ms`, not the static one
     /// step to the whole load.
     fn complete_defaults(&self, _scene: &Scene, requested: &Fidelity, merged: &mut Fidelity) {
-        let dynamic = matches!(merged.extras.get("integrator"), Some(Setting::Choice(c)) if c != "quasi-static");
-        if requested.dt.is_none() && dynamic {
-            merged.dt = Some(1e-3);
-        }
+        statics::keep_dynamic_dt(requested, merged, 1e-3);
     }
     fn build_resolved(&self, scene: &Scene, settings: &Settings) -> Result<Box<dyn Model>, BuildError> {
         let tissues: Vec<&TissueBody> = scene.tissues().collect();

@@ -2,9 +2,9 @@
 //! (`id = "meshless"`), its capabilities, fidelity keys and defaults.
 
 use crate::model::MeshlessTissue;
+use surgbench_core::statics;
 use surgbench_core::{
-    BuildError, Capability, Choice, Family, Fidelity, FidelityKey, Model, ModelFactory, Scene, Setting, Settings,
-    Unsupported,
+    BuildError, Capability, Choice, Family, Fidelity, FidelityKey, Model, ModelFactory, Scene, Settings, Unsupported,
 };
 
 /// Fidelity extras of `meshless` (besides `dt` and `iterations` = PBD sweeps).
@@ -100,20 +100,15 @@ impl ModelFactory for MeshlessFactory {
             iterations: Some(5),
             ..Default::default()
         };
-        if scene.settle.is_some()
-            && let Some(held) = scene.inputs_held_from().filter(|&t| t > 0.0)
-        {
-            f.dt = Some(held.min(0.5 * scene.duration));
+        if let Some(dt) = statics::static_dt(scene) {
+            f.dt = Some(dt);
         }
         f
     }
     /// A settling scene run with a dynamic integrator the caller picked,
     /// and no `dt`: the dynamic default `dt = 1 ms`.
     fn complete_defaults(&self, _scene: &Scene, requested: &Fidelity, merged: &mut Fidelity) {
-        let dynamic = matches!(merged.extras.get("integrator"), Some(Setting::Choice(c)) if c != "quasi-static");
-        if requested.dt.is_none() && dynamic {
-            merged.dt = Some(1e-3);
-        }
+        statics::keep_dynamic_dt(requested, merged, 1e-3);
     }
     fn check(&self, scene: &Scene) -> Result<(), Unsupported> {
         surgbench_core::model::check_capabilities(self.id(), self.capabilities(), scene)?;

@@ -45,6 +45,7 @@ use crate::material::{Law, M3};
 use crate::statics::{Constraint, Newton, StaticParams, dof_conditions, equilibrate};
 use std::any::Any;
 use surgbench_core::sphere_contact::DEFAULT_KAPPA;
+use surgbench_core::statics::LoadStepper;
 use surgbench_core::{
     DeviceCommand, EnergyObs, EnergyProbe, Model, Observation, SimError, StepStats, TissueBody, TissueObs, Vec3,
 };
@@ -62,20 +63,6 @@ pub use coupled::LinearStep;
 /// itself is 6.0e-2 away from the converged implicit step: five orders of
 /// magnitude below the scheme's own error.
 pub const REUSE_TOL: f64 = 1e-6;
-/// Smallest quasi-static load increment, as halvings of the step's whole
-/// load change: ten reach 1/1024 of it. A failed solve at that size ends
-/// the step with the error, as do [`MAX_FAILURES`] failed solves in one
-/// step (a load past a limit point otherwise creeps towards it forever).
-const MAX_HALVINGS: i32 = 10;
-/// Most failed Newton solves in one quasi-static step.
-const MAX_FAILURES: usize = 3 * MAX_HALVINGS as usize;
-/// A quasi-static load increment whose Newton solve took at most this
-/// many iterations doubles for the next one: a solve this fast started in
-/// Newton's quadratic range, so the next increment can be larger (the
-/// increment control of Crisfield, Non-linear Finite Element Analysis of
-/// Solids and Structures, vol. 1, Sec. 9.5: scale the increment by the
-/// ratio of desired to used iterations).
-const FAST_NEWTON: usize = 4;
 /// Refactorize on the next step once the stale-factor CG solves since the
 /// last factorization exceed one per step by this many in total: a numeric
 /// factorization costs about 53 forward/backward solves on the bench block
@@ -488,15 +475,12 @@ impl FemModel {
         })
     }
 
-    /// Adaptive load stepping from the last converged command `s_last` to
-    /// `s`, starting with the whole change: when Newton fails (not
-    /// converged in `iterations`, or inverted neo-Hookean elements),
-    /// restart from the last converged state with half the increment,
-    /// down to [`MAX_HALVINGS`] halvings of the whole change and at most
-    /// [`MAX_FAILURES`] times in all; after a success in at most
-    /// [`FAST_NEWTON`] iterations that did not follow a failure, double it.
-    /// Leaves the positions reached in `self.x`; counts the accepted
-    /// increments and the failed solves in `self.statics`.
+    /// Adaptive load stepping ([`LoadStepper`]) from the last converged
+    /// command `s_last` to `s`: a Newton solve fails when it has not
+    /// converged in `iterations` or inverts neo-Hookean elements, and the
+    /// step returns the last failure once the stepper gives up. Leaves the
+    /// positions reached in `self.x`; counts the accepted increments and
+    /// the failed solves in `self.statics`.
     fn load_steps(&mut self, s: f64) -> Result<Newton, FemError> {
         let load: Vec<f64> = self
             .gravity_load
@@ -518,13 +502,10 @@ impl FemModel {
         // that the step depends on the state alone (a restored state steps
         // bit for bit as the saved one did).
         self.sys.forget_factorization();
-        self.cached = None;
-        let (mut lo, mut h) = (self.s_last, s - self.s_last);
-        let h_min = (s - self.s_last).abs() * 0.5f64.powi(MAX_HALVINGS);
-        let (mut failures, mut failed) = (0, 0);
+        let mut steps = LoadStepper::new(self.s_last, s);
         let mut its = 0;
         let res = loop {
-            let hi = if (s - lo).abs() <= h.abs() { s } else { lo + h };
+            let hi = steps.target();
             for d in 0..self.uc.len() {
                 if !self.sys.free[d] {
                     x[d / 3][d % 3] = self.solid.rest[d / 3][d % 3] + hi * self.uc[d];
@@ -545,31 +526,19 @@ impl FemModel {
                 Ok(nt) => {
                     its += nt.iterations;
                     self.statics.factorizations += nt.factorizations;
-                    if hi != lo {
-                        self.statics.increments += 1;
-                    }
-                    if hi == s {
+                    if steps.converged(nt.iterations) {
                         break Ok(nt);
                     }
-                    lo = hi;
                     x_ok.clone_from(&x);
-                    if nt.iterations <= FAST_NEWTON && failures == 0 {
-                        h *= 2.0;
-                    }
-                    failures = 0;
                 }
-                Err(FemError::NotConverged { .. } | FemError::Inverted { .. })
-                    if 0.5 * h.abs() >= h_min && failed < MAX_FAILURES =>
-                {
-                    failures += 1;
-                    failed += 1;
-                    self.statics.failures += 1;
-                    h *= 0.5;
+                Err(FemError::NotConverged { .. } | FemError::Inverted { .. }) if steps.failed() => {
                     x.clone_from(&x_ok);
                 }
                 Err(e) => break Err(e),
             }
         };
+        self.statics.increments += steps.increments;
+        self.statics.failures += steps.failures;
         let res = res.map(|mut nt| {
             nt.iterations = its;
             nt

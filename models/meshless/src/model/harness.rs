@@ -4,18 +4,8 @@
 use super::*;
 use crate::elastic::StateCache;
 use surgbench_core::coupling::check_surface_forces;
+use surgbench_core::statics::LoadStepper;
 use surgbench_core::{DeviceCommand, EnergyProbe, Model, Observation, SimError, StepStats, TissueObs, Vec3};
-
-/// Smallest quasi-static load increment, as halvings of the step's whole
-/// load change (ten: 1/1024 of it); past it, or after [`MAX_FAILURES`]
-/// failed solves in one step, the step gives up (the FEM model's rule).
-const MAX_HALVINGS: i32 = 10;
-/// Most failed Newton solves in one quasi-static step.
-const MAX_FAILURES: usize = 3 * MAX_HALVINGS as usize;
-/// A quasi-static increment solved in at most this many Newton iterations
-/// doubles the next (the FEM model's rule: Crisfield, Non-linear Finite
-/// Element Analysis of Solids and Structures, vol. 1, Sec. 9.5).
-const FAST_NEWTON: usize = 4;
 
 impl Model for MeshlessTissue {
     fn step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
@@ -228,53 +218,40 @@ impl MeshlessTissue {
     }
 
     /// Quasi-static step from the equilibrium `xn` at the command
-    /// `last_load` to the command `load`, by adaptive load stepping as the
-    /// FEM model does it: first the whole change; a Newton solve that does
-    /// not converge (50 iterations) is retried from the last equilibrium
-    /// with half the increment, down to [`MAX_HALVINGS`] halvings of the
-    /// whole change and at most [`MAX_FAILURES`] times in all; a
-    /// solve in at most [`FAST_NEWTON`] iterations that did not follow a
-    /// failure doubles the next increment. Should the halvings run out, the
-    /// last equilibrium is solved at `load` once more and the step reports
-    /// that solve, unconverged, as a single Newton solve did before.
+    /// `last_load` to the command `load`, by the adaptive load stepping the
+    /// FEM model uses ([`LoadStepper`]); a Newton solve fails when it has
+    /// not converged in 50 iterations. Should the stepper give up, the
+    /// step reports an unconverged solve of the whole remaining change
+    /// from the last equilibrium (the failed solve itself when it was that
+    /// one), as a single Newton solve did before.
     fn static_step(&mut self, xn: &[Vec3], dt: f64, last_load: f64, load: f64) -> Result<StepStats, SimError> {
-        let (mut lo, mut h) = (last_load, load - last_load);
+        let mut steps = LoadStepper::new(last_load, load);
         let mut x_ok = xn.to_vec();
-        let h_min = h.abs() * 0.5f64.powi(MAX_HALVINGS);
-        let (mut failures, mut failed, mut iterations) = (0, 0, 0);
-        loop {
-            let hi = if (load - lo).abs() <= h.abs() { load } else { lo + h };
+        let mut iterations = 0;
+        let mut stats = loop {
+            let hi = steps.target();
             let mut stats = self.solve_at(&x_ok, dt, hi)?;
             iterations += stats.iterations;
-            if stats.converged && hi != lo {
-                self.load_stepping.0 += 1;
-            }
-            if hi == load && (stats.converged || hi == lo) {
-                stats.iterations = iterations;
-                return Ok(stats);
-            }
             if stats.converged {
-                lo = hi;
-                x_ok.clone_from(&self.x);
-                if stats.iterations as usize <= FAST_NEWTON && failures == 0 {
-                    h *= 2.0;
+                if steps.converged(stats.iterations as usize) {
+                    break stats;
                 }
-                failures = 0;
-            } else if 0.5 * h.abs() >= h_min && failed < MAX_FAILURES {
-                failures += 1;
-                failed += 1;
-                self.load_stepping.1 += 1;
-                h *= 0.5;
+                x_ok.clone_from(&self.x);
+            } else if steps.failed() {
                 self.x.clone_from(&x_ok);
+            } else if hi == load {
+                break stats;
             } else {
-                // Halvings used up: the whole remaining change once more
-                // from the last equilibrium, reported unconverged.
                 self.x.clone_from(&x_ok);
-                let mut last = self.solve_at(&x_ok, dt, load)?;
-                last.iterations += iterations;
-                return Ok(last);
+                stats = self.solve_at(&x_ok, dt, load)?;
+                iterations += stats.iterations;
+                break stats;
             }
-        }
+        };
+        self.load_stepping.0 += steps.increments;
+        self.load_stepping.1 += steps.failures;
+        stats.iterations = iterations;
+        Ok(stats)
     }
 
     /// Newton from the current positions with the load factor `load`
