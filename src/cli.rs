@@ -291,6 +291,11 @@ struct RunOneArgs {
     /// Repeats (timings pooled; results must be bit-identical).
     #[arg(long, default_value_t = 1)]
     repeats: usize,
+    /// After the first repeat, start another only while the repeats so far
+    /// took less than this many seconds of wall time, builds included
+    /// (default: always --repeats).
+    #[arg(long, value_name = "S")]
+    repeat_budget: Option<f64>,
     /// Print nothing on success.
     #[arg(long)]
     quiet: bool,
@@ -570,10 +575,16 @@ fn cmd_run_one(a: &RunOneArgs) -> Result<(), Failure> {
     if a.repeats == 0 {
         return Err(Failure::Usage("--repeats must be >= 1".into()));
     }
+    if let Some(b) = a.repeat_budget
+        && !(b > 0.0)
+    {
+        return Err(Failure::Usage(format!("--repeat-budget must be > 0 s, got {b}")));
+    }
     install_interrupt()?;
     child::start_watchdog();
     let opts = RunOptions {
         repeats: a.repeats,
+        repeat_budget_s: a.repeat_budget.unwrap_or(f64::INFINITY),
         ..Default::default()
     };
     let summary = resolved.run(&opts)?;

@@ -66,6 +66,14 @@ fn bad_input_is_a_clear_usage_error_and_writes_nothing() {
         "`poisson_ratio`",
     );
     case(&[&gravity[..], &["--param", "length=abc"]].concat(), "not a number");
+    case(
+        &[&gravity[..], &["--repeat-budget", "0"]].concat(),
+        "--repeat-budget must be > 0",
+    );
+    case(
+        &[&gravity[..], &["--repeat-budget", "nan"]].concat(),
+        "--repeat-budget must be > 0",
+    );
     case(&[&gravity[..], &["--fidelity", "dt=0"]].concat(), "`dt`");
     case(&[&gravity[..], &["--fidelity", "dt=-1e-3"]].concat(), "`dt`");
     case(&[&gravity[..], &["--fidelity", "segments=2.5"]].concat(), "`segments`");

@@ -381,3 +381,22 @@ fn shipped_comparisons_validate_in_full() {
     }
     assert!(n >= 4, "found {n} comparisons");
 }
+
+/// A comparison's `repeat_budget_s` reaches each run (`run-one
+/// --repeat-budget`): with a budget no run can stay under, a run repeats
+/// once, not `repeats` times, and its summary.json says so.
+#[test]
+fn a_comparisons_repeat_budget_reaches_its_runs() {
+    for (budget, expected) in [("", 3), ("repeat_budget_s = 1e-9\n", 1)] {
+        let tmp = tempfile::tempdir().unwrap();
+        let text = format!(
+            "repeats = 3\n{budget}{}",
+            cantilever("der", "sweep = { segments = [10] }")
+        );
+        let o = run_comparison(tmp.path(), &text, &[]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let row = &rows(tmp.path())[0];
+        let s = RunSummary::read(&tmp.path().join("report").join(&row.run_dir).join("summary.json")).unwrap();
+        assert_eq!(s.repeats, expected, "{budget}");
+    }
+}

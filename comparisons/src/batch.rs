@@ -275,6 +275,9 @@ pub(crate) fn run_job(
         .arg("--repeats")
         .arg(repeats.to_string())
         .arg("--quiet");
+    if let Some(b) = c.repeat_budget_s.filter(|_| repeats > 1) {
+        cmd.arg("--repeat-budget").arg(b.to_string());
+    }
     match run_child(cmd, &err_path, timeout, opts) {
         ChildEnd::Interrupted(sig) => return Err(BatchError::Interrupted(sig)),
         ChildEnd::Failed(status, reason) => {

@@ -6,6 +6,7 @@
 //! description = "rod statics"
 //! models = "all"            # or ["der", "chainmail"]
 //! repeats = 3
+//! repeat_budget_s = 10     # further repeats only while under 10 s (optional)
 //! timeout_s = 300
 //!
 //! [[scenario]]
@@ -147,6 +148,10 @@ pub struct Comparison {
     pub models: ModelSelection,
     /// Repeats per run (timings pooled).
     pub repeats: Option<usize>,
+    /// A run's further repeats start only while its repeats so far took
+    /// less than this wall time (s) (`run-one --repeat-budget`); none: all
+    /// `repeats`.
+    pub repeat_budget_s: Option<f64>,
     /// Wall-clock limit per run (s).
     pub timeout_s: Option<f64>,
     /// Scenarios.
@@ -266,6 +271,11 @@ impl Comparison {
         }
         if c.repeats == Some(0) {
             return Err(UsageError("repeats must be >= 1".into()));
+        }
+        if let Some(b) = c.repeat_budget_s
+            && !(b > 0.0)
+        {
+            return Err(UsageError(format!("repeat_budget_s must be > 0, got {b}")));
         }
         if let Some(t) = c.timeout_s
             && !(t > 0.0)
@@ -451,6 +461,15 @@ mod tests {
         assert!(e.0.contains("\"all\""), "{e}");
         let e = Comparison::parse("name = \"x\"\nmodels = \"all\"\nbogus = 1\n[[scenario]]\nid = \"a\"").unwrap_err();
         assert!(e.0.contains("bogus"), "{e}");
+        for bad in ["0", "-1", "nan"] {
+            let e = Comparison::parse(&format!(
+                "name = \"x\"\nmodels = \"all\"\nrepeat_budget_s = {bad}\n[[scenario]]\nid = \"a\""
+            ))
+            .unwrap_err();
+            assert!(e.0.contains("repeat_budget_s must be > 0"), "{e}");
+        }
+        let c = Comparison::parse("name = \"x\"\nmodels = \"all\"\nrepeat_budget_s = 10\n[[scenario]]\nid = \"a\"");
+        assert_eq!(c.unwrap().repeat_budget_s, Some(10.0));
     }
 
     #[test]

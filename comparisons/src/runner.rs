@@ -139,6 +139,12 @@ pub fn check_steps(duration: f64, dt: f64) -> Result<usize, UsageError> {
 pub struct RunOptions {
     /// Full repeats of the run (timings pooled; results must be identical).
     pub repeats: usize,
+    /// After the first repeat, a further one starts only while the repeats
+    /// so far (builds included) took less than this wall time (s): a long
+    /// run's hundreds of steps already give its ms/step distribution, and
+    /// its repeats would cost more than they tell. Infinite: always
+    /// `repeats`. The repeats done are the summary's `repeats`.
+    pub repeat_budget_s: f64,
     /// Steps excluded from timing at the start of each repeat.
     pub warmup: usize,
     /// Keep roughly this many samples of the time series.
@@ -151,6 +157,7 @@ impl Default for RunOptions {
     fn default() -> Self {
         Self {
             repeats: 1,
+            repeat_budget_s: f64::INFINITY,
             warmup: 5,
             samples: 400,
             stretch_limit: 0.05,
@@ -551,6 +558,7 @@ pub fn run_checked(
         }
     };
     s.build_ms = Some(reps.build_ms);
+    s.repeats = reps.done;
     record_timing(&mut s.outcome, &reps);
     record_verdict(&mut s.outcome, &reps);
     let rep = reps.first;
@@ -582,6 +590,9 @@ struct Repeats {
     diagnostics: BTreeMap<String, f64>,
     times_ms: Vec<f64>,
     iters: Vec<f64>,
+    /// Repeats done (at most `RunOptions::repeats`, fewer once
+    /// `RunOptions::repeat_budget_s` is spent).
+    done: usize,
     /// Why the run is not reproducible, if it is not.
     nondeterministic: Option<String>,
 }
@@ -626,6 +637,7 @@ fn run_repeats(
     opts: &RunOptions,
 ) -> Result<Result<Repeats, String>, UsageError> {
     let primary = scenario.primary_error();
+    let start = Instant::now();
     let (mut model, build_ms) = match build_model(factory, run.scene(), settings)? {
         Ok(m) => m,
         Err(reason) => return Ok(Err(reason)),
@@ -640,10 +652,14 @@ fn run_repeats(
         diagnostics: model.diagnostics(),
         times_ms: first.times_ms.clone(),
         iters: first.iters.iter().map(|&i| i as f64).collect(),
+        done: 1,
         nondeterministic: None,
         first,
     };
     for r in 1..opts.repeats.max(1) {
+        if start.elapsed().as_secs_f64() >= opts.repeat_budget_s {
+            break;
+        }
         let mut model = match build_model(factory, run.scene(), settings)? {
             Ok((m, _)) => m,
             Err(reason) => return Ok(Err(reason)),
@@ -651,6 +667,7 @@ fn run_repeats(
         let rep = run_repeat(model.as_mut(), run, primary, opts, false, max_steps);
         reps.times_ms.extend_from_slice(&rep.times_ms);
         reps.iters.extend(rep.iters.iter().map(|&i| i as f64));
+        reps.done += 1;
         if reps.first.last != rep.last || reps.first.steps != rep.steps {
             reps.nondeterministic = Some(format!("non-deterministic: repeat {r} differs from repeat 0"));
         }
