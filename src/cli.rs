@@ -118,6 +118,10 @@ struct SweepArgs {
     /// scenario's own): the report's verdicts judge against it.
     #[arg(long = "target", visible_alias = "tolerance", value_name = "SCENARIO=VALUE")]
     targets: Vec<String>,
+    /// Time budgets per step in ms the report's verdicts name (default
+    /// 1,16,33: a 1 kHz haptic loop, 60 and 30 Hz frames).
+    #[arg(long, value_delimiter = ',', value_name = "MS,...")]
+    budget_ms: Option<Vec<f64>>,
 }
 
 impl SweepArgs {
@@ -149,8 +153,27 @@ impl SweepArgs {
         Ok((c, path))
     }
 
-    /// `--repeats` and `--timeout` in range.
+    /// The `--budget-ms` values ascending, or the defaults; a usage error
+    /// unless each is a number > 0.
+    fn budgets_ms(&self) -> Result<Vec<f64>, Failure> {
+        match &self.budget_ms {
+            Some(b) => {
+                if b.is_empty() || !b.iter().all(|v| *v > 0.0 && v.is_finite()) {
+                    return Err(Failure::Usage(format!(
+                        "--budget-ms must be numbers > 0 (ms), got {b:?}"
+                    )));
+                }
+                let mut b = b.clone();
+                b.sort_by(f64::total_cmp);
+                Ok(b)
+            }
+            None => Ok(surgbench_reports::DEFAULT_BUDGETS_MS.to_vec()),
+        }
+    }
+
+    /// `--repeats`, `--timeout` and `--budget-ms` in range.
     fn check(&self) -> Result<(), Failure> {
+        self.budgets_ms()?;
         if self.repeats == Some(0) {
             return Err(Failure::Usage("--repeats must be >= 1".into()));
         }
@@ -196,10 +219,6 @@ struct RunArgs {
     /// Run a sharded run's finished points again instead of skipping them.
     #[arg(long)]
     no_resume: bool,
-    /// Time budgets per step in ms the report's verdicts name (default
-    /// 1,16,33: a 1 kHz haptic loop, 60 and 30 Hz frames).
-    #[arg(long, value_delimiter = ',', value_name = "MS,...")]
-    budget_ms: Option<Vec<f64>>,
 }
 
 impl RunArgs {
@@ -217,19 +236,7 @@ impl RunArgs {
             exe: launcher()?.exe.clone(),
             exe_args: launcher()?.args.clone(),
             command: std::env::args().collect::<Vec<_>>().join(" "),
-            budgets_ms: match &self.budget_ms {
-                Some(b) => {
-                    if b.is_empty() || !b.iter().all(|v| *v > 0.0 && v.is_finite()) {
-                        return Err(Failure::Usage(format!(
-                            "--budget-ms must be numbers > 0 (ms), got {b:?}"
-                        )));
-                    }
-                    let mut b = b.clone();
-                    b.sort_by(f64::total_cmp);
-                    b
-                }
-                None => surgbench_reports::DEFAULT_BUDGETS_MS.to_vec(),
-            },
+            budgets_ms: self.sweep.budgets_ms()?,
         })
     }
 }

@@ -284,3 +284,34 @@ fn merge_names_missing_points_and_refuses_mixed_runs() {
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("comparison: mix here, other there"), "{err}");
 }
+
+/// `--budget-ms` is part of a sharded run's plan: the merged report's
+/// verdicts name the budgets the shards ran with, and a shard asking for
+/// others is refused as another run.
+#[test]
+fn the_plan_carries_the_time_budgets_to_the_merged_report() {
+    let tmp = tempfile::tempdir().unwrap();
+    let c = comparison(tmp.path(), "bud", "6, 8", "");
+    let (c, sweep) = (c.to_str().unwrap(), tmp.path().join("sweep"));
+    let sw = sweep.to_str().unwrap();
+    let (code, _, err) = run(
+        surgbench(),
+        &["plan", c, "--shards", "2", "--budget-ms", "50,2", "--out", sw],
+    );
+    assert_eq!(code, 0, "{err}");
+    for k in ["0/2", "1/2"] {
+        let (code, _, err) = run(
+            surgbench(),
+            &["run", c, "--shard", k, "--budget-ms", "2,50", "--quiet", "--out", sw],
+        );
+        assert_eq!(code, 0, "{err}");
+    }
+    let (code, _, err) = run(surgbench(), &["run", c, "--shard", "0/2", "--quiet", "--out", sw]);
+    assert_eq!(code, 2, "default budgets are another run: {err}");
+    assert!(err.contains("budgets_ms"), "{err}");
+    let merged = tmp.path().join("merged");
+    let (code, _, err) = run(surgbench(), &["merge", sw, "--out", merged.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    let info = surgbench_reports::read_run_info(&merged.join("summary.json")).unwrap();
+    assert_eq!(info.budgets_ms, vec![2.0, 50.0]);
+}

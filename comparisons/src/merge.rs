@@ -191,7 +191,10 @@ fn merged_info(g: &Gathered, opts: &MergeOptions) -> RunInfo {
         python_models: batch::python_models(g.rows.iter().map(|(r, _)| r)),
         fitted: batch::fitted_models(g.rows.iter().map(|(r, _)| r)),
         targets: plan.map(|p| p.targets.clone()).unwrap_or_default(),
-        budgets_ms: surgbench_reports::DEFAULT_BUDGETS_MS.to_vec(),
+        budgets_ms: plan.map_or_else(
+            || surgbench_reports::DEFAULT_BUDGETS_MS.to_vec(),
+            |p| p.budgets_ms.clone(),
+        ),
     }
 }
 

@@ -144,6 +144,15 @@ pub struct PlanSettings {
     pub timeout_s: f64,
     /// Shard count.
     pub shards: usize,
+    /// Time budgets per step (ms) the merged report's verdicts name
+    /// (`--budget-ms`; the defaults in plans written before they were kept).
+    #[serde(default = "default_budgets_ms")]
+    pub budgets_ms: Vec<f64>,
+}
+
+/// [`PlanSettings::budgets_ms`] of a plan that has none.
+fn default_budgets_ms() -> Vec<f64> {
+    surgbench_reports::DEFAULT_BUDGETS_MS.to_vec()
 }
 
 impl Plan {
@@ -200,7 +209,7 @@ impl Plan {
 
     /// How `self` differs from `other` in what makes two plans one run (the
     /// comparison, its file, the commit, sweeps, models, repeats, time
-    /// limit, shard count and points): one line per difference, empty when
+    /// limit, shard count, time budgets and points): one line per difference, empty when
     /// they are the same run.
     pub fn differences(&self, other: &Plan) -> Vec<String> {
         let mut d = Vec::new();
@@ -221,6 +230,11 @@ impl Plan {
         cmp("repeats", self.repeats.to_string(), other.repeats.to_string());
         cmp("timeout_s", self.timeout_s.to_string(), other.timeout_s.to_string());
         cmp("shards", self.shards.to_string(), other.shards.to_string());
+        cmp(
+            "budgets_ms",
+            format!("{:?}", self.budgets_ms),
+            format!("{:?}", other.budgets_ms),
+        );
         let ids = |p: &Plan| p.points.iter().map(|p| p.id.clone()).collect::<Vec<_>>();
         if ids(self) != ids(other) {
             d.push(format!(

@@ -25,6 +25,7 @@ fn settings(shards: usize, commit: &str) -> PlanSettings {
         repeats: 1,
         timeout_s: 300.0,
         shards,
+        budgets_ms: vec![1.0, 16.0, 33.0],
     }
 }
 
@@ -191,4 +192,20 @@ fn merge_lists_mixed_commits_and_comparisons() {
         "{:?}",
         g.mixed
     );
+}
+
+/// A plan written before it kept the time budgets reads with the defaults,
+/// and two plans that differ only in their budgets are two runs.
+#[test]
+fn budgets_default_in_old_plans_and_tell_runs_apart() {
+    let p = plan_of(BASE, 2, "c0ffee");
+    let mut json: serde_json::Value = serde_json::to_value(&p).unwrap();
+    json.as_object_mut().unwrap().remove("budgets_ms").unwrap();
+    let old: Plan = serde_json::from_value(json).unwrap();
+    assert_eq!(old.budgets_ms, surgbench_reports::DEFAULT_BUDGETS_MS.to_vec());
+    let mut other = p.clone();
+    other.settings.budgets_ms = vec![5.0];
+    let d = p.differences(&other);
+    assert_eq!(d.len(), 1, "{d:?}");
+    assert!(d[0].starts_with("budgets_ms"), "{d:?}");
 }

@@ -63,6 +63,7 @@ fn make_plan(sweep: &SweepArgs, shards: usize) -> Result<(Comparison, Plan, Vec<
         repeats: batch::repeats_of(&c, quick, repeats),
         timeout_s: batch::timeout_of(&c, timeout),
         shards,
+        budgets_ms: sweep.budgets_ms()?,
     };
     let p = Plan::new(&c, &jobs, settings)?;
     Ok((c, p, jobs))
