@@ -43,7 +43,15 @@
 //! * Viscous shaft friction (seed Sec. 3.3) is implicit: a sliding point's
 //!   row of the LCP gains `1 / c_i` on the diagonal ([`lcp`]).
 //!
-//! Not yet (issues 17 and 18): tip remeshing and the seed's lazy Jacobian rule.
+//! * [`remesh`]: the seed's tip remeshing (Algorithm 2) in material
+//!   coordinates, on an undo stack, and the channel bookkeeping that
+//!   drives it ([`remesh::Channel`]). It is tested on its own (validity,
+//!   volume, the seed's dihedral bounds over insertion-retraction cycles,
+//!   exact undo) and not yet coupled to the model: the tissue model needs
+//!   per-step topology changes first (issue 18).
+//!
+//! Not yet (issues 17 and 18): `coupling = "remesh"` in the model, and the
+//! seed's lazy Jacobian rule.
 //!
 //! Units are SI: m, kg, s, N, Pa.
 
@@ -52,6 +60,7 @@ pub mod factory;
 pub mod lcp;
 pub mod model;
 pub mod pcg;
+pub mod remesh;
 
 pub use factory::NeedleFactory;
 pub use model::{LcpStats, NeedleModel, Point};
