@@ -61,6 +61,7 @@ pub mod lcp;
 pub mod model;
 pub mod pcg;
 pub mod remesh;
+pub mod reparam;
 
 pub use factory::NeedleFactory;
 pub use model::{LcpStats, NeedleModel, Point};
