@@ -210,6 +210,8 @@ pub struct Remesher {
     node_tets: Vec<Vec<usize>>,
     /// Nodes an operation on the stack put on the needle.
     on_needle: Vec<bool>,
+    /// Nodes the scene holds (fixed or driven): never snapped.
+    pinned: Vec<bool>,
     stack: Vec<Op>,
 }
 
@@ -232,7 +234,16 @@ impl Remesher {
             tets: mesh.tets.clone(),
             node_tets,
             on_needle: vec![false; mesh.nodes.len()],
+            pinned: vec![false; mesh.nodes.len()],
             stack: Vec::new(),
+        }
+    }
+
+    /// Never snap `nodes` (the scene's fixed and driven nodes: moving their
+    /// rest position would move what holds the tissue).
+    pub fn pin(&mut self, nodes: impl IntoIterator<Item = usize>) {
+        for i in nodes {
+            self.pinned[i] = true;
         }
     }
 
@@ -388,7 +399,7 @@ impl Remesher {
                     .total_cmp(&(self.nodes[b] - u).norm_squared())
             })
             .expect("a tet has four nodes");
-        if !self.on_needle[nearest] {
+        if !self.on_needle[nearest] && !self.pinned.get(nearest).copied().unwrap_or(false) {
             let star = self.node_tets[nearest].clone();
             let op = Op {
                 kind: OpKind::Snap,
@@ -598,6 +609,37 @@ impl Remesher {
             }
         }
     }
+}
+
+/// Nodal fields carried from a mesh to its remeshed successor: a node
+/// of `new_rest` that the old mesh had at the same index and rest position
+/// (bit for bit) keeps its values; a new or moved one gets the linear
+/// interpolation, in the old rest tet that holds its rest position, of the
+/// old values (the finite element's own field, so a split leaves the
+/// deformation, and with it the elastic energy, unchanged). `fields`: one
+/// slice per field over the old nodes. Fails if a rest position lies
+/// outside the old mesh.
+pub fn carry_over(
+    old_rest: &[Vec3],
+    old_tets: &[[usize; 4]],
+    new_rest: &[Vec3],
+    fields: &[&[Vec3]],
+) -> Result<Vec<Vec<Vec3>>, RemeshError> {
+    let mut out: Vec<Vec<Vec3>> = fields.iter().map(|_| Vec::with_capacity(new_rest.len())).collect();
+    for (i, p) in new_rest.iter().enumerate() {
+        if old_rest.get(i) == Some(p) {
+            for (o, f) in out.iter_mut().zip(fields) {
+                o.push(f[i]);
+            }
+            continue;
+        }
+        let at = crate::coupling::locate(old_tets, old_rest, p).ok_or(RemeshError::Outside(*p))?;
+        let t = old_tets[at.tet];
+        for (o, f) in out.iter_mut().zip(fields) {
+            o.push((0..4).map(|k| f[t[k]] * at.w[k]).sum());
+        }
+    }
+    Ok(out)
 }
 
 /// What [`Channel::tip_to`] did.

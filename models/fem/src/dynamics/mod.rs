@@ -378,6 +378,50 @@ impl FemModel {
         })
     }
 
+    /// Node velocities (m/s) and accelerations (m/s^2), in mesh order.
+    pub fn motion(&self) -> (&[Vec3], &[Vec3]) {
+        (&self.v, &self.a)
+    }
+
+    /// The same tissue continued on a remeshed body (needle-tip remeshing,
+    /// issue 18): `body` is the body this model was built from with its
+    /// rest mesh replaced, `x` (m, world), `v` and `a` the state on the new
+    /// mesh (the caller interpolates it at new or moved material points).
+    /// Time, load parameter, hand force and the settings carry over; the
+    /// element caches, the sparsity pattern and the factorization are built
+    /// anew (the next step factorizes). External forces restart at zero: a
+    /// coupling sets them every step. The body's bounding box must not
+    /// change (remeshing keeps the boundary), so the local origin stays.
+    pub fn remeshed(
+        &self,
+        body: &TissueBody,
+        gravity: Vec3,
+        x: &[Vec3],
+        v: &[Vec3],
+        a: &[Vec3],
+    ) -> Result<Self, FemError> {
+        let n = body.mesh.nodes.len();
+        if x.len() != n || v.len() != n || a.len() != n {
+            return Err(FemError::BadInput(format!(
+                "a remeshed state needs {n} positions, velocities and accelerations, got {}, {}, {}",
+                x.len(),
+                v.len(),
+                a.len()
+            )));
+        }
+        let mut m = Self::new(body, gravity, self.dt, self.p)?;
+        if m.origin != self.origin {
+            return Err(FemError::BadInput("remeshing changed the body's bounding box".into()));
+        }
+        m.t = self.t;
+        m.x = x.iter().map(|p| p - m.origin).collect();
+        m.v = v.to_vec();
+        m.a = a.to_vec();
+        m.s_last = self.s_last;
+        m.hand_force = self.hand_force;
+        Ok(m)
+    }
+
     /// Current node positions (m, world coordinates).
     pub fn positions(&self) -> Vec<Vec3> {
         self.x.iter().map(|p| p + self.origin).collect()
