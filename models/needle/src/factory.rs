@@ -34,6 +34,25 @@ const KEYS: &[FidelityKey] = &[
             ),
         ],
     ),
+    FidelityKey::choice(
+        "coupling",
+        "how coupling points sit in the tissue mesh",
+        &[
+            Choice::new(
+                "embedded",
+                "default: tissue material points embedded in the tets that hold them (barycentric weights)",
+            ),
+            Choice::new(
+                "remesh",
+                "the seed's: every coupling point a mesh node, placed by tip remeshing (Algorithm 2) and taken back on withdrawal; the tissue is rebuilt on each new mesh",
+            ),
+        ],
+    ),
+    FidelityKey::number(
+        "remesh_max_offset",
+        "coupling=remesh: how far a snap may move a node, or an edge or face split put its node off its edge or face, in rms edge lengths of the tet holding the point (default: no limit, the seed's rule; 0 keeps the tissue's field exact: tet splits, and splits of the edge or face the point lies on)",
+    )
+    .at_least(0.0),
     FidelityKey::number(
         "cg_tolerance",
         "lcp_solver=cg: relative residual each CG solve stops at (default 1e-8)",
@@ -41,8 +60,9 @@ const KEYS: &[FidelityKey] = &[
     .between(0.0, 1.0),
 ];
 
-/// The `needle` model: FEM tissue + DER needle, embedded coupling points,
-/// stick-slip friction by the seed's LCP.
+/// The `needle` model: FEM tissue + DER needle, coupling points embedded
+/// in tets or made mesh nodes by tip remeshing, stick-slip friction by the
+/// seed's LCP.
 pub struct NeedleFactory;
 
 impl ModelFactory for NeedleFactory {
@@ -50,7 +70,7 @@ impl ModelFactory for NeedleFactory {
         "needle"
     }
     fn description(&self) -> &'static str {
-        "needle insertion (Chentanez 2009): corotational FEM tissue + DER needle, embedded coupling points, stick-slip LCP by Schur complement (or the seed's CG)"
+        "needle insertion (Chentanez 2009): corotational FEM tissue + DER needle, coupling points embedded in tets (or mesh nodes by the seed's tip remeshing), stick-slip LCP by Schur complement (or the seed's CG)"
     }
     fn family(&self) -> Family {
         Family::Coupled
@@ -137,8 +157,24 @@ impl ModelFactory for NeedleFactory {
                 tolerance: settings.number_or("cg_tolerance", CG_TOLERANCE),
             },
         };
-        Ok(Box::new(
-            NeedleModel::new(fem, rod, tissue.mesh.tets.clone(), needle, spacing, dt).with_solver(solver),
-        ))
+        let remesh = settings.pick("coupling", &[("embedded", false), ("remesh", true)], false)?;
+        let max_offset = settings.number("remesh_max_offset");
+        if !remesh && max_offset.is_some() {
+            return Err(BuildError::bad(
+                "remesh_max_offset",
+                "applies to coupling=remesh only; embedded points change no mesh",
+            ));
+        }
+        let model = NeedleModel::new(fem, rod, tissue.mesh.tets.clone(), needle, spacing, dt).with_solver(solver);
+        if !remesh {
+            return Ok(Box::new(model));
+        }
+        // 0 means exact up to round-off: a point computed on a face or edge
+        // lies off it by ~1e-16 of the edge length.
+        let max_offset = max_offset.map_or(f64::INFINITY, |f| f.max(1e-9));
+        let model = model
+            .with_remeshing(tissue.clone(), scene.gravity, max_offset)
+            .map_err(|e| BuildError::bad("coupling", e.to_string()))?;
+        Ok(Box::new(model))
     }
 }

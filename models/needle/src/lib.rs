@@ -43,15 +43,19 @@
 //! * Viscous shaft friction (seed Sec. 3.3) is implicit: a sliding point's
 //!   row of the LCP gains `1 / c_i` on the diagonal ([`lcp`]).
 //!
-//! * [`remesh`]: the seed's tip remeshing (Algorithm 2) in material
-//!   coordinates, on an undo stack, and the channel bookkeeping that
-//!   drives it ([`remesh::Channel`]). It is tested on its own (validity,
-//!   volume, the seed's dihedral bounds over insertion-retraction cycles,
-//!   exact undo) and not yet coupled to the model: the tissue model needs
-//!   per-step topology changes first (issue 18).
+//! * With `coupling = "remesh"` every coupling point (and the entry) is a
+//!   node of the tissue mesh instead, placed by the seed's tip remeshing
+//!   (Algorithm 2, [`remesh`]) in material coordinates: the tip's node
+//!   moves with the tip (its operation taken back and the best one for
+//!   the new point applied), shaft points keep theirs, the needle leaving
+//!   the tissue takes every operation back. The tissue continues on each
+//!   new mesh with its state interpolated (`FemModel::remeshed`, rebuilt
+//!   rather than updated in place: issue 18, item 4, is open).
+//! * [`reparam`]: Akima interpolation and the seed's edge resampling rule,
+//!   for reparameterizing the needle (not yet used by the model).
 //!
-//! Not yet (issues 17 and 18): `coupling = "remesh"` in the model, and the
-//! seed's lazy Jacobian rule.
+//! Not yet (issues 17 and 18): the seed's lazy Jacobian rule, in-place
+//! matrix updates on remeshing, the needle's reparameterization.
 //!
 //! Units are SI: m, kg, s, N, Pa.
 

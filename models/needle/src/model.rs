@@ -8,9 +8,10 @@
 use crate::coupling::{Embedded, OnNeedle, frame, locate, locate_within, on_needle};
 use crate::lcp::{self, Bounds, Solution, State};
 use crate::pcg::{self, Row};
+use crate::remesh::{Place, Remesher, carry_over};
 use nalgebra::DMatrix;
 use std::collections::BTreeMap;
-use surgbench_core::{DeviceCommand, Model, NeedleTissue, Observation, SimError, StepStats, Vec3};
+use surgbench_core::{DeviceCommand, Model, NeedleTissue, Observation, SimError, StepStats, TissueBody, Vec3};
 use surgbench_der::DerRod;
 use surgbench_fem::{FemModel, LinearStep};
 
@@ -129,6 +130,36 @@ pub struct NeedleModel {
     entry: Option<Embedded>,
     stats: LcpStats,
     solver: LcpSolver,
+    /// Tip remeshing (`coupling = "remesh"`): every coupling point a node.
+    remesh: Option<Remeshing>,
+}
+
+/// The remeshed variant's state (issue 18): the remesher over the tissue's
+/// rest mesh, the scene's body (to rebuild the tissue on the new mesh) and
+/// which nodes stand for the entry and the tip.
+///
+/// Stack order: the entry's operation first, then the shaft points' in the
+/// order they were cut, the tip's on top (so that it can move with the
+/// tip). A shaft point the retracting tip leaves keeps its node (the
+/// channel stays cut) until a new shaft point within half a spacing reuses
+/// it; the needle leaving the tissue takes every operation back.
+struct Remeshing {
+    remesher: Remesher,
+    body: TissueBody,
+    gravity: Vec3,
+    entry_node: Option<usize>,
+    tip_node: Option<usize>,
+    /// Operations applied and taken back, tissue rebuilds, and points the
+    /// remesher found no valid operation for (left embedded that step).
+    ops: usize,
+    rebuilds: usize,
+    refused: usize,
+}
+
+/// The node `e` sits on, if its weights are one-hot.
+fn node_of(tets: &[[usize; 4]], e: &Embedded) -> Option<usize> {
+    let k = e.w.iter().position(|&w| w == 1.0)?;
+    e.w.iter().all(|&w| w == 1.0 || w == 0.0).then(|| tets[e.tet][k])
 }
 
 impl NeedleModel {
@@ -157,8 +188,217 @@ impl NeedleModel {
             entry: None,
             stats: LcpStats::default(),
             solver: LcpSolver::Schur,
+            remesh: None,
         }
         .pre_inserted()
+    }
+
+    /// The same model with the seed's tip remeshing (issue 18): every
+    /// coupling point becomes a node of the tissue mesh, placed by the
+    /// remesher ([`crate::remesh`]) and carried along as the tip cuts.
+    /// `body` is the tissue the model was built from (its fixed and driven
+    /// nodes are never snapped), `gravity` the scene's (m/s^2), `max_offset`
+    /// the remesher's limit on field-changing operations
+    /// ([`Remesher::set_max_offset`]; infinite: the seed's rule).
+    pub fn with_remeshing(mut self, body: TissueBody, gravity: Vec3, max_offset: f64) -> Result<Self, SimError> {
+        let mut remesher = Remesher::new(&body.mesh);
+        remesher.pin(
+            body.fixed_nodes
+                .iter()
+                .copied()
+                .chain(body.driven_nodes.iter().map(|d| d.0)),
+        );
+        remesher.pin(body.partial_fixed.iter().map(|p| p.0));
+        remesher.set_max_offset(max_offset);
+        self.remesh = Some(Remeshing {
+            remesher,
+            body,
+            gravity,
+            entry_node: None,
+            tip_node: None,
+            ops: 0,
+            rebuilds: 0,
+            refused: 0,
+        });
+        self.realize()?;
+        Ok(self)
+    }
+
+    /// Remeshed variant: make every coupling point (and the entry) a mesh
+    /// node, then continue the tissue on the new mesh. Points that are
+    /// already nodes stay; new ones (the entry, a shaft point just added,
+    /// the tip after it cut on) get a node at their material point; the
+    /// tip's node moves with it (the top operation taken back and the best
+    /// one for the new point applied). A needle that has left the tissue
+    /// takes every operation back.
+    fn realize(&mut self) -> Result<(), SimError> {
+        let Some(mut rm) = self.remesh.take() else {
+            return Ok(());
+        };
+        let out = self.realize_with(&mut rm);
+        self.remesh = Some(rm);
+        out
+    }
+
+    fn realize_with(&mut self, rm: &mut Remeshing) -> Result<(), SimError> {
+        let t = self.fem.observe().time;
+        let xt = self.fem.positions();
+        let old_rest = rm.remesher.nodes().to_vec();
+        let old_tets = rm.remesher.tets().to_vec();
+        let material = |e: &Embedded| -> Vec3 { (0..4).map(|k| old_rest[old_tets[e.tet][k]] * e.w[k]).sum() };
+        let ops_before = rm.ops;
+        // Out of the tissue (the tip a quarter spacing behind the entry,
+        // along the needle's last edge; at entry the two coincide): the
+        // channel closes, the mesh is the original.
+        let last = self.rod.num_nodes() - 1;
+        let tip_x = self.rod.node(last);
+        let along = (tip_x - self.rod.node(last - 1)).normalize();
+        let out = self
+            .entry
+            .is_some_and(|e| (tip_x - e.position(&self.tets, &xt)).dot(&along) < -0.25 * self.spacing);
+        if out {
+            while rm.remesher.pop().is_some() {
+                rm.ops += 1;
+            }
+            self.entry = None;
+            self.tip = None;
+            self.shaft.clear();
+            self.touching = false;
+            rm.entry_node = None;
+            rm.tip_node = None;
+        }
+        // Every point's material point and node (None: not a node yet).
+        let entry_u = self.entry.map(|e| material(&e));
+        let shaft_u: Vec<Vec3> = self.shaft.iter().map(|p| material(&p.tissue)).collect();
+        let mut shaft_nodes: Vec<Option<usize>> = self.shaft.iter().map(|p| node_of(&old_tets, &p.tissue)).collect();
+        let tip_u = self.tip.map(|p| material(&p.tissue));
+        let tip_moved = self
+            .tip
+            .is_some_and(|p| rm.tip_node.is_none() || node_of(&old_tets, &p.tissue) != rm.tip_node);
+        let fresh_below = (self.entry.is_some() && rm.entry_node.is_none()) || shaft_nodes.iter().any(Option::is_none);
+        // The tip gets its own node only half a spacing clear of the entry
+        // and the shaft points (closer, every operation leaves a sliver);
+        // until then it stays embedded.
+        let clear = tip_u.is_some_and(|u| {
+            entry_u
+                .iter()
+                .chain(&shaft_u)
+                .all(|c| (c - u).norm() >= 0.5 * self.spacing)
+        });
+        let mut tip_node = rm.tip_node;
+        if tip_node.is_some() && (fresh_below || !clear || self.tip.is_none()) {
+            // New nodes go below the tip's, and a tip that is not clear (or
+            // lost) gives its node back: take its operation back.
+            rm.remesher.pop();
+            rm.ops += 1;
+            tip_node = None;
+        }
+        if let (Some(u), None) = (entry_u, rm.entry_node) {
+            if let Ok(p) = rm.remesher.place(u, Place::New) {
+                rm.entry_node = Some(p.node);
+                rm.ops += 1;
+            } else {
+                rm.refused += 1;
+            }
+        }
+        for i in 0..self.shaft.len() {
+            if shaft_nodes[i].is_some() {
+                continue;
+            }
+            let u = shaft_u[i];
+            // A channel node a retraction left behind, within half a
+            // spacing: couple it again instead of crowding a new one next
+            // to it.
+            let coupled: Vec<usize> = shaft_nodes.iter().flatten().copied().chain(rm.entry_node).collect();
+            let reuse = rm
+                .remesher
+                .stack()
+                .iter()
+                .map(|o| o.node)
+                .filter(|n| !coupled.contains(n))
+                .map(|n| ((rm.remesher.nodes()[n] - u).norm(), n))
+                .filter(|(d, _)| *d < 0.5 * self.spacing)
+                .min_by(|a, b| a.0.total_cmp(&b.0));
+            shaft_nodes[i] = match reuse {
+                Some((_, n)) => Some(n),
+                None => match rm.remesher.place(u, Place::New) {
+                    Ok(p) => {
+                        rm.ops += 1;
+                        Some(p.node)
+                    }
+                    Err(_) => {
+                        rm.refused += 1;
+                        None
+                    }
+                },
+            };
+        }
+        if let Some(u) = tip_u.filter(|_| clear && (tip_moved || tip_node.is_none()))
+            && !out
+        {
+            let mode = if tip_node.is_some() { Place::Move } else { Place::New };
+            match rm.remesher.place(u, mode) {
+                Ok(p) => {
+                    tip_node = Some(p.node);
+                    rm.ops += 1;
+                }
+                Err(_) => {
+                    // Left embedded (its old node, if it had one, taken back).
+                    if tip_node.take().is_some() {
+                        rm.remesher.pop();
+                        rm.ops += 1;
+                    }
+                    rm.refused += 1;
+                }
+            }
+        }
+        rm.tip_node = tip_node;
+        if rm.ops == ops_before {
+            return Ok(());
+        }
+        // Continue the tissue on the new mesh and re-express every point
+        // on it: a node's point one-hot in a tet around it, a point that is
+        // not a node by its material point (slots may have changed).
+        let mesh = rm.remesher.mesh();
+        let (v, a) = self.fem.motion();
+        let fail = |reason: String| SimError::SolverFailed { t, reason };
+        let f = carry_over(&old_rest, &old_tets, &mesh.nodes, &[&xt, v, a])
+            .map_err(|e| fail(format!("tip remeshing: {e}")))?;
+        self.fem = self
+            .fem
+            .remeshed(&Self::body_on(&rm.body, &mesh), rm.gravity, &f[0], &f[1], &f[2])
+            .map_err(|e| fail(format!("tissue on the remeshed mesh: {e}")))?;
+        rm.rebuilds += 1;
+        self.tets = mesh.tets.clone();
+        let at = |n: Option<usize>, u: Vec3| -> Result<Embedded, SimError> {
+            match n {
+                Some(n) => {
+                    let tet = rm.remesher.tets_of(n)[0];
+                    let mut w = [0.0; 4];
+                    w[mesh.tets[tet].iter().position(|&i| i == n).expect("the node's tet")] = 1.0;
+                    Ok(Embedded { tet, w })
+                }
+                None => locate_within(&mesh.tets, &mesh.nodes, &u, TIP_SLACK)
+                    .ok_or_else(|| fail("a coupling point left the remeshed tissue".into())),
+            }
+        };
+        if let (Some(e), Some(u)) = (&mut self.entry, entry_u) {
+            *e = at(rm.entry_node, u)?;
+        }
+        for ((p, n), u) in self.shaft.iter_mut().zip(&shaft_nodes).zip(&shaft_u) {
+            p.tissue = at(*n, *u)?;
+        }
+        if let (Some(tip), Some(u)) = (&mut self.tip, tip_u) {
+            tip.tissue = at(rm.tip_node, u)?;
+        }
+        Ok(())
+    }
+
+    /// `body` with its rest mesh replaced by `mesh`.
+    fn body_on(body: &TissueBody, mesh: &surgbench_core::TetMesh) -> TissueBody {
+        let mut b = body.clone();
+        b.mesh = mesh.clone();
+        b
     }
 
     /// The same model with each LCP trial solved by `solver`.
@@ -781,6 +1021,7 @@ impl Model for NeedleModel {
         self.fem.end_linear_step(lin, &dx)?;
         self.rod.end_linear_step(dt, &dz)?;
         self.update_points(&new_states, &slips);
+        self.realize()?;
         Ok(stats)
     }
 
@@ -831,6 +1072,13 @@ impl Model for NeedleModel {
         d.insert("lcp_unresolved_steps".into(), s.unresolved as f64);
         d.insert("tip_fallback_steps".into(), s.tip_fallbacks as f64);
         d.insert("tip_lost".into(), s.tip_lost as f64);
+        if let Some(rm) = &self.remesh {
+            d.insert("remesh_operations".into(), rm.ops as f64);
+            d.insert("remesh_rebuilds".into(), rm.rebuilds as f64);
+            d.insert("remesh_refused".into(), rm.refused as f64);
+            d.insert("tissue_nodes".into(), rm.remesher.nodes().len() as f64);
+            d.insert("remesh_depth".into(), rm.remesher.stack().len() as f64);
+        }
         // The seed's Table 3 "linear-solver iterations": only the CG solver has them.
         if matches!(self.solver, LcpSolver::Cg { .. }) {
             let steps = s.all_steps.max(1) as f64;

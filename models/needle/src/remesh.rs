@@ -213,6 +213,10 @@ pub struct Remesher {
     /// Nodes the scene holds (fixed or driven): never snapped.
     pinned: Vec<bool>,
     stack: Vec<Op>,
+    /// How far (in rms edge lengths of the tet holding the target) a snap
+    /// may move a node, or an edge or face split put its node off the
+    /// split simplex; infinite (the seed's rule) unless set.
+    max_offset: f64,
 }
 
 /// Relative tolerance of "the target lies in a boundary face's plane",
@@ -236,7 +240,17 @@ impl Remesher {
             on_needle: vec![false; mesh.nodes.len()],
             pinned: vec![false; mesh.nodes.len()],
             stack: Vec::new(),
+            max_offset: f64::INFINITY,
         }
+    }
+
+    /// Limit how far a snap moves a node, and how far an edge or face
+    /// split puts its node off the split edge or face, to `fraction` of the
+    /// rms edge length of the tet holding the target (a tet split is always
+    /// a candidate). Either changes the finite element field around it (a
+    /// split on its own simplex does not): the limit bounds that change.
+    pub fn set_max_offset(&mut self, fraction: f64) {
+        self.max_offset = fraction;
     }
 
     /// Never snap `nodes` (the scene's fixed and driven nodes: moving their
@@ -268,6 +282,11 @@ impl Remesher {
     /// The operations applied, oldest first.
     pub fn stack(&self) -> &[Op] {
         &self.stack
+    }
+
+    /// The tets around `node`, by slot.
+    pub fn tets_of(&self, node: usize) -> &[usize] {
+        &self.node_tets[node]
     }
 
     /// Whether an operation on the stack put `node` on the needle.
@@ -399,7 +418,18 @@ impl Remesher {
                     .total_cmp(&(self.nodes[b] - u).norm_squared())
             })
             .expect("a tet has four nodes");
-        if !self.on_needle[nearest] && !self.pinned.get(nearest).copied().unwrap_or(false) {
+        let p = t.map(|i| self.nodes[i]);
+        let mut l2 = 0.0;
+        for i in 0..4 {
+            for j in i + 1..4 {
+                l2 += (p[j] - p[i]).norm_squared();
+            }
+        }
+        let reach = self.max_offset * (l2 / 6.0).sqrt();
+        if !self.on_needle[nearest]
+            && !self.pinned.get(nearest).copied().unwrap_or(false)
+            && (self.nodes[nearest] - u).norm() <= reach
+        {
             let star = self.node_tets[nearest].clone();
             let op = Op {
                 kind: OpKind::Snap,
@@ -416,6 +446,12 @@ impl Remesher {
         const EDGES: [[usize; 2]; 6] = [[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]];
         const FACES: [[usize; 3]; 4] = [[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]];
         for s in EDGES {
+            let (a, b) = (self.nodes[t[s[0]]], self.nodes[t[s[1]]]);
+            let e = (b - a).normalize();
+            let off = (u - a) - e * e.dot(&(u - a));
+            if off.norm() > reach {
+                continue;
+            }
             let s = s.map(|k| t[k]);
             let op = self.split(OpKind::EdgeSplit, &s, u);
             if let Some(q) = self.score(&op, &s) {
@@ -423,6 +459,10 @@ impl Remesher {
             }
         }
         for s in FACES {
+            let [a, b, c] = s.map(|k| self.nodes[t[k]]);
+            if (b - a).cross(&(c - a)).normalize().dot(&(u - a)).abs() > reach {
+                continue;
+            }
             let s = s.map(|k| t[k]);
             let op = self.split(OpKind::FaceSplit, &s, u);
             if let Some(q) = self.score(&op, &s) {

@@ -21,6 +21,10 @@ struct Sample {
     forward: f64,
     backward: f64,
     points: f64,
+    /// Remeshed runs: coupling points left embedded for want of a valid
+    /// operation, and the tissue's node count.
+    refused: f64,
+    nodes: f64,
 }
 
 /// Insert 12 mm at `V`, hold 0.3 s, retract 10 mm at `V`.
@@ -35,11 +39,21 @@ fn run_threads(cells: [usize; 3], segments: usize, threads: usize) -> Vec<Sample
 
 /// [`run_threads`] with viscous shaft friction `eta` (N s/m^2).
 fn run_with(cells: [usize; 3], segments: usize, threads: usize, eta: f64) -> Vec<Sample> {
+    run_coupled(cells, segments, threads, eta, "embedded")
+}
+
+/// [`run_with`] with coupling points `coupling` (`embedded` or `remesh`).
+fn run_coupled(cells: [usize; 3], segments: usize, threads: usize, eta: f64, coupling: &str) -> Vec<Sample> {
     let x1 = 12e-3 + 1e-3;
     let feed = [(0.0, 0.0), (x1 / V, x1), (x1 / V + 0.3, x1), (x1 / V + 1.3, x1 - 10e-3)];
     let mut scene = common::scene(&feed, cells, F_PERLEN, F_CUT);
     scene.needle.as_mut().expect("a needle scene").viscous_friction = eta;
-    let f = Fidelity::parse_pairs(&[format!("segments={segments}"), format!("threads={threads}")]).unwrap();
+    let f = Fidelity::parse_pairs(&[
+        format!("segments={segments}"),
+        format!("threads={threads}"),
+        format!("coupling={coupling}"),
+    ])
+    .unwrap();
     let mut m = NeedleFactory.build(&scene, &f).unwrap();
     let dt = m.dt();
     let n = (scene.duration / dt).round() as usize;
@@ -57,6 +71,8 @@ fn run_with(cells: [usize; 3], segments: usize, threads: usize, eta: f64) -> Vec
             forward: d["forward_points"],
             backward: d["backward_points"],
             points: d["coupling_points"],
+            refused: d.get("remesh_refused").copied().unwrap_or(0.0),
+            nodes: d.get("tissue_nodes").copied().unwrap_or(0.0),
         });
     }
     out
@@ -64,12 +80,33 @@ fn run_with(cells: [usize; 3], segments: usize, threads: usize, eta: f64) -> Vec
 
 #[test]
 fn base_force_follows_the_closed_form_while_sliding() {
-    let s = run([8, 4, 4], 40);
+    closed_form_while_sliding(&run([8, 4, 4], 40), "embedded");
+}
+
+#[test]
+fn remeshed_base_force_follows_the_closed_form_while_sliding() {
+    let s = run_coupled([8, 4, 4], 40, 2, 0.0, "remesh");
+    closed_form_while_sliding(&s, "remesh");
+    let last = s.last().unwrap();
+    let most = s.iter().map(|x| x.nodes).fold(0.0, f64::max);
+    println!(
+        "remesh: {} refused, tissue nodes up to {most}, {} at the end",
+        last.refused, last.nodes
+    );
+    // Every coupling point found a valid operation (it is a mesh node).
+    assert_eq!(last.refused, 0.0);
+    // The block has 9 x 5 x 5 = 225 nodes; the channel added some (the
+    // needle runs along a grid line, so many points snap grid nodes).
+    assert!(most > 225.0);
+}
+
+/// The checks of the straight insertion on the samples `s` of a run.
+fn closed_form_while_sliding(s: &[Sample], what: &str) {
     let t_in = 13e-3 / V;
     let mut worst_in: f64 = 0.0;
     let mut worst_out: f64 = 0.0;
     let (mut sliding_in, mut sliding_out) = (0, 0);
-    for x in &s {
+    for x in s {
         // The closed form holds while every point slides the way the needle moves.
         if x.points >= 2.0 && x.forward == x.points && x.t < t_in {
             sliding_in += 1;
@@ -98,7 +135,7 @@ fn base_force_follows_the_closed_form_while_sliding() {
         }
     }
     println!(
-        "sliding steps {sliding_in} in, {sliding_out} out, worst insertion error {worst_in:.3e}, retraction {worst_out:.3e}"
+        "{what}: sliding steps {sliding_in} in, {sliding_out} out, worst insertion error {worst_in:.3e}, retraction {worst_out:.3e}"
     );
     // Most of the insertion slides (measured: 854 of 1,300 steps; the
     // others are stick episodes of the block's axial ringing).
@@ -115,20 +152,15 @@ fn base_force_follows_the_closed_form_while_sliding() {
 
 #[test]
 fn reruns_are_bit_identical_at_1_and_2_threads() {
-    let a = run_threads([4, 2, 2], 20, 1);
-    let b = run_threads([4, 2, 2], 20, 2);
-    let c = run_threads([4, 2, 2], 20, 2);
-    assert_eq!(a.len(), b.len());
-    assert!(
-        b.iter()
-            .zip(&c)
-            .all(|(x, y)| x.push.to_bits() == y.push.to_bits() && x.d.to_bits() == y.d.to_bits())
-    );
-    assert!(
-        a.iter()
-            .zip(&b)
-            .all(|(x, y)| x.push.to_bits() == y.push.to_bits() && x.d.to_bits() == y.d.to_bits())
-    );
+    for coupling in ["embedded", "remesh"] {
+        let a = run_coupled([4, 2, 2], 20, 1, 0.0, coupling);
+        let b = run_coupled([4, 2, 2], 20, 2, 0.0, coupling);
+        let c = run_coupled([4, 2, 2], 20, 2, 0.0, coupling);
+        assert_eq!(a.len(), b.len());
+        let same = |x: &Sample, y: &Sample| x.push.to_bits() == y.push.to_bits() && x.d.to_bits() == y.d.to_bits();
+        assert!(b.iter().zip(&c).all(|(x, y)| same(x, y)), "{coupling}: rerun");
+        assert!(a.iter().zip(&b).all(|(x, y)| same(x, y)), "{coupling}: 1 vs 2 threads");
+    }
 }
 
 #[test]
@@ -164,4 +196,31 @@ fn viscous_friction_adds_at_most_eta_v_d_while_sliding() {
     // Measured: the mean share is 0.73 (the shaft slides at 0.64 v to 0.79 v
     // as d grows): the viscous term acts, at the tissue's relative speed.
     assert!(share > 0.0, "no viscous force: share {share}");
+}
+
+#[test]
+fn remeshing_is_taken_back_when_the_needle_leaves_and_refused_without_it() {
+    // In 6 mm (tip 5 mm deep), out to 3 mm before the block.
+    let feed = [(0.0, 0.0), (0.6, 6e-3), (1.4, -2e-3)];
+    let scene = common::scene(&feed, [8, 4, 4], F_PERLEN, F_CUT);
+    let f = Fidelity::parse_pairs(&["segments=40".to_string(), "coupling=remesh".to_string()]).unwrap();
+    let mut m = NeedleFactory.build(&scene, &f).unwrap();
+    let dt = m.dt();
+    let (mut most_nodes, mut deepest) = (0.0_f64, 0.0_f64);
+    for i in 1..=(scene.duration / dt).round() as usize {
+        m.step(dt, &scene.control.command_at(i as f64 * dt)).unwrap();
+        let d = m.diagnostics();
+        most_nodes = most_nodes.max(d["tissue_nodes"]);
+        deepest = deepest.max(d["remesh_depth"]);
+    }
+    let d = m.diagnostics();
+    // 9 x 5 x 5 nodes; the channel had nodes of its own, all taken back.
+    assert!(deepest >= 3.0, "entry, shaft and tip nodes: {deepest} operations deep");
+    assert!(most_nodes > 225.0);
+    assert_eq!(d["remesh_depth"], 0.0);
+    assert_eq!(d["tissue_nodes"], 225.0);
+    assert_eq!(d["coupling_points"], 0.0);
+    let bad = Fidelity::parse_pairs(&["remesh_max_offset=0.2".to_string()]).unwrap();
+    let err = NeedleFactory.build(&scene, &bad).err().expect("refused").to_string();
+    assert!(err.contains("coupling=remesh only"), "{err}");
 }

@@ -306,7 +306,6 @@ impl FemModel {
     /// Build from a tissue body (rest mesh, material, fixed and driven
     /// nodes), gravity (m/s^2), time step (s) and settings.
     pub fn new(body: &TissueBody, gravity: Vec3, dt: f64, p: DynParams) -> Result<Self, FemError> {
-        Self::check_settings(dt, &p)?;
         // Work in coordinates relative to the rest mesh's bounding-box centre:
         // positions far from the world origin then cost no digits (the
         // penalty contact's force is k times a gap of ~1e-3 of the depth, and
@@ -318,6 +317,12 @@ impl FemModel {
             let (lo, hi) = surgbench_core::mesh::bounds(&body.mesh);
             (lo + hi) * 0.5
         };
+        Self::build(body, gravity, dt, p, origin)
+    }
+
+    /// [`Self::new`] with the local coordinates' origin `origin` (m, world).
+    fn build(body: &TissueBody, gravity: Vec3, dt: f64, p: DynParams, origin: Vec3) -> Result<Self, FemError> {
+        Self::check_settings(dt, &p)?;
         let local = surgbench_core::TetMesh {
             nodes: body.mesh.nodes.iter().map(|p| p - origin).collect(),
             tets: body.mesh.tets.clone(),
@@ -390,8 +395,8 @@ impl FemModel {
     /// Time, load parameter, hand force and the settings carry over; the
     /// element caches, the sparsity pattern and the factorization are built
     /// anew (the next step factorizes). External forces restart at zero: a
-    /// coupling sets them every step. The body's bounding box must not
-    /// change (remeshing keeps the boundary), so the local origin stays.
+    /// coupling sets them every step. The local coordinates keep their
+    /// origin, so the nodes that stay keep their local positions exactly.
     pub fn remeshed(
         &self,
         body: &TissueBody,
@@ -409,10 +414,7 @@ impl FemModel {
                 a.len()
             )));
         }
-        let mut m = Self::new(body, gravity, self.dt, self.p)?;
-        if m.origin != self.origin {
-            return Err(FemError::BadInput("remeshing changed the body's bounding box".into()));
-        }
+        let mut m = Self::build(body, gravity, self.dt, self.p, self.origin)?;
         m.t = self.t;
         m.x = x.iter().map(|p| p - m.origin).collect();
         m.v = v.to_vec();
