@@ -241,7 +241,7 @@ impl NeedleModel {
     }
 
     fn realize_with(&mut self, rm: &mut Remeshing) -> Result<(), SimError> {
-        let t = self.fem.observe().time;
+        let t = self.fem.time();
         let xt = self.fem.positions();
         let old_rest = rm.remesher.nodes().to_vec();
         let old_tets = rm.remesher.tets().to_vec();

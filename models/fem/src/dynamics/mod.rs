@@ -383,6 +383,11 @@ impl FemModel {
         })
     }
 
+    /// Simulated time (s).
+    pub fn time(&self) -> f64 {
+        self.t
+    }
+
     /// Node velocities (m/s) and accelerations (m/s^2), in mesh order.
     pub fn motion(&self) -> (&[Vec3], &[Vec3]) {
         (&self.v, &self.a)
