@@ -135,8 +135,9 @@ pub struct NeedleModel {
 }
 
 /// The remeshed variant's state (issue 18): the remesher over the tissue's
-/// rest mesh, the scene's body (to rebuild the tissue on the new mesh) and
-/// which nodes stand for the entry and the tip.
+/// rest mesh, the scene's body on the mesh the tissue was last built on
+/// (to rebuild it on the next one) and which nodes stand for the entry and
+/// the tip.
 ///
 /// Stack order: the entry's operation first, then the shaft points' in the
 /// order they were cut, the tip's on top (so that it can move with the
@@ -206,9 +207,9 @@ impl NeedleModel {
             body.fixed_nodes
                 .iter()
                 .copied()
-                .chain(body.driven_nodes.iter().map(|d| d.0)),
+                .chain(body.driven_nodes.iter().map(|d| d.0))
+                .chain(body.partial_fixed.iter().map(|p| p.0)),
         );
-        remesher.pin(body.partial_fixed.iter().map(|p| p.0));
         remesher.set_max_offset(max_offset);
         self.remesh = Some(Remeshing {
             remesher,
@@ -243,9 +244,9 @@ impl NeedleModel {
     fn realize_with(&mut self, rm: &mut Remeshing) -> Result<(), SimError> {
         let t = self.fem.time();
         let xt = self.fem.positions();
-        let old_rest = rm.remesher.nodes().to_vec();
-        let old_tets = rm.remesher.tets().to_vec();
-        let material = |e: &Embedded| -> Vec3 { (0..4).map(|k| old_rest[old_tets[e.tet][k]] * e.w[k]).sum() };
+        // The mesh the tissue is on (the remesher's until it changes below).
+        let old = &rm.body.mesh;
+        let material = |e: &Embedded| -> Vec3 { (0..4).map(|k| old.nodes[old.tets[e.tet][k]] * e.w[k]).sum() };
         let ops_before = rm.ops;
         // Out of the tissue (the tip a quarter spacing behind the entry,
         // along the needle's last edge; at entry the two coincide): the
@@ -270,11 +271,11 @@ impl NeedleModel {
         // Every point's material point and node (None: not a node yet).
         let entry_u = self.entry.map(|e| material(&e));
         let shaft_u: Vec<Vec3> = self.shaft.iter().map(|p| material(&p.tissue)).collect();
-        let mut shaft_nodes: Vec<Option<usize>> = self.shaft.iter().map(|p| node_of(&old_tets, &p.tissue)).collect();
+        let mut shaft_nodes: Vec<Option<usize>> = self.shaft.iter().map(|p| node_of(&old.tets, &p.tissue)).collect();
         let tip_u = self.tip.map(|p| material(&p.tissue));
         let tip_moved = self
             .tip
-            .is_some_and(|p| rm.tip_node.is_none() || node_of(&old_tets, &p.tissue) != rm.tip_node);
+            .is_some_and(|p| rm.tip_node.is_none() || node_of(&old.tets, &p.tissue) != rm.tip_node);
         let fresh_below = (self.entry.is_some() && rm.entry_node.is_none()) || shaft_nodes.iter().any(Option::is_none);
         // The tip gets its own node only half a spacing clear of the entry
         // and the shaft points (closer, every operation leaves a sliver);
@@ -362,11 +363,13 @@ impl NeedleModel {
         let mesh = rm.remesher.mesh();
         let (v, a) = self.fem.motion();
         let fail = |reason: String| SimError::SolverFailed { t, reason };
-        let f = carry_over(&old_rest, &old_tets, &mesh.nodes, &[&xt, v, a])
+        let f = carry_over(&rm.body.mesh.nodes, &rm.body.mesh.tets, &mesh.nodes, &[&xt, v, a])
             .map_err(|e| fail(format!("tip remeshing: {e}")))?;
+        rm.body.mesh = mesh;
+        let mesh = &rm.body.mesh;
         self.fem = self
             .fem
-            .remeshed(&Self::body_on(&rm.body, &mesh), rm.gravity, &f[0], &f[1], &f[2])
+            .remeshed(&rm.body, rm.gravity, &f[0], &f[1], &f[2])
             .map_err(|e| fail(format!("tissue on the remeshed mesh: {e}")))?;
         rm.rebuilds += 1;
         self.tets = mesh.tets.clone();
@@ -392,13 +395,6 @@ impl NeedleModel {
             tip.tissue = at(rm.tip_node, u)?;
         }
         Ok(())
-    }
-
-    /// `body` with its rest mesh replaced by `mesh`.
-    fn body_on(body: &TissueBody, mesh: &surgbench_core::TetMesh) -> TissueBody {
-        let mut b = body.clone();
-        b.mesh = mesh.clone();
-        b
     }
 
     /// The same model with each LCP trial solved by `solver`.

@@ -177,14 +177,19 @@ pub struct Placed {
 /// negative when inverted.
 pub fn tet_quality(p: &[Vec3; 4]) -> f64 {
     let v = tet_volume(&p[0], &p[1], &p[2], &p[3]);
+    let l_rms = rms_edge(p);
+    6.0 * std::f64::consts::SQRT_2 * v / (l_rms * l_rms * l_rms)
+}
+
+/// Root mean square of the six edge lengths of the tet `p` (m).
+fn rms_edge(p: &[Vec3; 4]) -> f64 {
     let mut l2 = 0.0;
     for i in 0..4 {
         for j in i + 1..4 {
             l2 += (p[j] - p[i]).norm_squared();
         }
     }
-    let l_rms = (l2 / 6.0).sqrt();
-    6.0 * std::f64::consts::SQRT_2 * v / (l_rms * l_rms * l_rms)
+    (l2 / 6.0).sqrt()
 }
 
 /// Lexicographic order of quality vectors sorted worst first: the first
@@ -418,14 +423,7 @@ impl Remesher {
                     .total_cmp(&(self.nodes[b] - u).norm_squared())
             })
             .expect("a tet has four nodes");
-        let p = t.map(|i| self.nodes[i]);
-        let mut l2 = 0.0;
-        for i in 0..4 {
-            for j in i + 1..4 {
-                l2 += (p[j] - p[i]).norm_squared();
-            }
-        }
-        let reach = self.max_offset * (l2 / 6.0).sqrt();
+        let reach = self.max_offset * rms_edge(&t.map(|i| self.nodes[i]));
         if !self.on_needle[nearest]
             && !self.pinned.get(nearest).copied().unwrap_or(false)
             && (self.nodes[nearest] - u).norm() <= reach

@@ -54,6 +54,17 @@ fn assert_valid(r: &Remesher, what: &str) {
     assert!((q.volume - v).abs() < 1e-13 * v, "{what}: volume {} vs {v}", q.volume);
 }
 
+/// The centre node of `cube(4)` (interior) and a Kuhn tet around it whose
+/// last corner it is: `p0 = c - (h, h, h)`, `p3 = c`, the cell's diagonal
+/// `p0-p3`.
+fn centre_tet(start: &TetMesh) -> (usize, [Vec3; 4]) {
+    let h = SIZE[0] / 4.0;
+    let c = Vec3::new(2.0 * h, 2.0 * h, 2.0 * h);
+    let centre = start.nodes.iter().position(|p| *p == c).unwrap();
+    let tet = start.tets.iter().find(|t| t[3] == centre).unwrap();
+    (centre, tet.map(|i| start.nodes[i]))
+}
+
 fn assert_same(a: &TetMesh, b: &TetMesh, what: &str) {
     assert_eq!(a.tets, b.tets, "{what}: connectivity");
     assert_eq!(a.nodes.len(), b.nodes.len(), "{what}: node count");
@@ -92,11 +103,8 @@ fn every_operation_keeps_the_mesh_valid_and_its_volume_and_undoes_exactly() {
 fn the_quality_vector_picks_what_the_target_calls_for() {
     let start = cube(4);
     let h = SIZE[0] / 4.0;
-    let c = Vec3::new(2.0 * h, 2.0 * h, 2.0 * h); // an interior node
-    let centre = start.nodes.iter().position(|p| *p == c).unwrap();
-    // A Kuhn tet around it: p0 = c - (h, h, h), p3 = c, the cell's diagonal p0-p3.
-    let tet = start.tets.iter().find(|t| t[3] == centre).unwrap();
-    let p = tet.map(|i| start.nodes[i]);
+    let (_, p) = centre_tet(&start);
+    let c = p[3]; // an interior node
     assert!((p[3] - p[0]).norm() > 1.7 * h, "p0-p3 is the cell diagonal");
     let cases = [
         // Next to a node: any split leaves a sliver, moving the node does not.
@@ -176,9 +184,8 @@ fn the_boundary_stays_put_except_where_the_target_is_on_it() {
     assert_eq!(r.nodes()[skin_node], skin);
     // A pinned node (fixed or driven by the scene) is never snapped.
     let h = SIZE[0] / 4.0;
-    let c = Vec3::new(2.0 * h, 2.0 * h, 2.0 * h);
-    let centre = start.nodes.iter().position(|p| *p == c).unwrap();
-    let near = c + Vec3::new(0.011, -0.017, 0.009) * h;
+    let (centre, p) = centre_tet(&start);
+    let near = p[3] + Vec3::new(0.011, -0.017, 0.009) * h;
     let mut free = Remesher::new(&start);
     assert_eq!(free.place(near, Place::New).unwrap().kind, OpKind::Snap);
     let mut pinned = Remesher::new(&start);
@@ -340,14 +347,7 @@ fn the_tissue_continues_on_the_remeshed_body_with_its_energy() {
         b.mesh = m;
         fem.remeshed(&b, gravity, &f[0], &f[1], &f[2]).unwrap()
     };
-    // A Kuhn tet at the centre node, p0-p3 its cell diagonal.
-    let h = SIZE[0] / 4.0;
-    let c = start
-        .nodes
-        .iter()
-        .position(|p| *p == Vec3::new(2.0 * h, 2.0 * h, 2.0 * h))
-        .unwrap();
-    let p = start.tets.iter().find(|t| t[3] == c).unwrap().map(|i| start.nodes[i]);
+    let (_, p) = centre_tet(&start);
     let on_simplex = [
         (Vec3::new(0.00431, 0.00512, 0.00467), OpKind::TetSplit),
         ((p[0] + p[1] + p[3]) / 3.0, OpKind::FaceSplit),
