@@ -275,6 +275,21 @@ impl Solid {
         out
     }
 
+    /// The smallest current-over-rest volume ratio `J = V / V0` of any tet
+    /// (1 at rest, 0 collapsed, negative inverted): how close the most
+    /// compressed element is to collapse.
+    pub fn min_volume_ratio(&self, x: &[Vec3]) -> f64 {
+        self.elems
+            .tets
+            .iter()
+            .zip(&self.elems.vol)
+            .map(|(t, v0)| {
+                let p = t.map(|i| x[i]);
+                surgbench_core::mesh::tet_volume(&p[0], &p[1], &p[2], &p[3]) / v0
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
     /// Current volume over rest volume, minus one.
     pub fn volume_error(&self, x: &[Vec3]) -> f64 {
         let (mut v, mut v0) = (0.0, 0.0);

@@ -341,3 +341,25 @@ fn pressure_faces_and_rollers_reproduce_lame_through_the_factory() {
     // dead load; the follower load changes it by O(strain) ~ 2 %: bound 5 %.
     assert!(worst < 0.05, "max nodal radial error / u(a) = {worst:.3e}");
 }
+
+#[test]
+fn the_most_compressed_tet_bounds_the_mean_volume_ratio() {
+    use surgbench_core::Model as _;
+    // At rest every tet keeps its volume: V / V0 = 1 to round-off.
+    let body = block_body(2, 0.1);
+    let p = DynParams {
+        integrator: Integrator::QuasiStatic,
+        iterations: 30,
+        ..Default::default()
+    };
+    let mut m = FemModel::new(&body, Vec3::zeros(), 1e-3, p).unwrap();
+    assert!((m.min_volume_ratio() - 1.0).abs() < 1e-12, "{}", m.min_volume_ratio());
+    // Squashed 10 %: the smallest ratio is positive (nothing inverts) and at
+    // most the volume-weighted mean, which is V / V0 = 1 + volume error.
+    m.advance(1e-3, 1.0).unwrap();
+    let mean = 1.0 + m.observe().tissues[0].volume_error;
+    let min = m.min_volume_ratio();
+    assert!(min > 0.0 && min <= mean + 1e-12, "min {min}, mean {mean}");
+    // The free sides bulge: compression is uneven, the minimum below the mean.
+    assert!(min < mean, "min {min}, mean {mean}");
+}

@@ -132,6 +132,9 @@ pub struct NeedleModel {
     solver: LcpSolver,
     /// Tip remeshing (`coupling = "remesh"`): every coupling point a node.
     remesh: Option<Remeshing>,
+    /// The smallest tet volume ratio `V / V0` at the end of any step so
+    /// far: a point-loaded node squeezes its elements towards collapse.
+    volume_ratio_min: f64,
 }
 
 /// The remeshed variant's state (issue 18): the remesher over the tissue's
@@ -155,6 +158,15 @@ struct Remeshing {
     ops: usize,
     rebuilds: usize,
     refused: usize,
+    /// Elastic energy (J) the operations took out of the tissue, summed over
+    /// rebuilds (negative: put in): an on-simplex split keeps it, taking a
+    /// displaced node back or snapping one does not.
+    released: f64,
+    /// The largest change of elastic energy (J) in one rebuild, either sign.
+    energy_jump_max: f64,
+    /// The farthest (m, material coordinates) the tip's node moved in one
+    /// step.
+    tip_jump_max: f64,
 }
 
 /// The node `e` sits on, if its weights are one-hot.
@@ -190,6 +202,7 @@ impl NeedleModel {
             stats: LcpStats::default(),
             solver: LcpSolver::Schur,
             remesh: None,
+            volume_ratio_min: f64::INFINITY,
         }
         .pre_inserted()
     }
@@ -220,6 +233,9 @@ impl NeedleModel {
             ops: 0,
             rebuilds: 0,
             refused: 0,
+            released: 0.0,
+            energy_jump_max: 0.0,
+            tip_jump_max: 0.0,
         });
         self.realize()?;
         Ok(self)
@@ -287,6 +303,7 @@ impl NeedleModel {
                 .all(|c| (c - u).norm() >= 0.5 * self.spacing)
         });
         let mut tip_node = rm.tip_node;
+        let tip_was = tip_node.map(|n| old.nodes[n]);
         if tip_node.is_some() && (fresh_below || !clear || self.tip.is_none()) {
             // New nodes go below the tip's, and a tip that is not clear (or
             // lost) gives its node back: take its operation back.
@@ -342,6 +359,9 @@ impl NeedleModel {
                 Ok(p) => {
                     tip_node = Some(p.node);
                     rm.ops += 1;
+                    if let Some(w) = tip_was {
+                        rm.tip_jump_max = rm.tip_jump_max.max((u - w).norm());
+                    }
                 }
                 Err(_) => {
                     // Left embedded (its old node, if it had one, taken back).
@@ -367,10 +387,14 @@ impl NeedleModel {
             .map_err(|e| fail(format!("tip remeshing: {e}")))?;
         rm.body.mesh = mesh;
         let mesh = &rm.body.mesh;
+        let before = self.fem.elastic_energy();
         self.fem = self
             .fem
             .remeshed(&rm.body, rm.gravity, &f[0], &f[1], &f[2])
             .map_err(|e| fail(format!("tissue on the remeshed mesh: {e}")))?;
+        let change = before - self.fem.elastic_energy();
+        rm.released += change;
+        rm.energy_jump_max = rm.energy_jump_max.max(change.abs());
         rm.rebuilds += 1;
         self.tets = mesh.tets.clone();
         let at = |n: Option<usize>, u: Vec3| -> Result<Embedded, SimError> {
@@ -1018,6 +1042,7 @@ impl Model for NeedleModel {
         self.rod.end_linear_step(dt, &dz)?;
         self.update_points(&new_states, &slips);
         self.realize()?;
+        self.volume_ratio_min = self.volume_ratio_min.min(self.fem.min_volume_ratio());
         Ok(stats)
     }
 
@@ -1068,12 +1093,18 @@ impl Model for NeedleModel {
         d.insert("lcp_unresolved_steps".into(), s.unresolved as f64);
         d.insert("tip_fallback_steps".into(), s.tip_fallbacks as f64);
         d.insert("tip_lost".into(), s.tip_lost as f64);
+        if self.volume_ratio_min.is_finite() {
+            d.insert("tissue_volume_ratio_min".into(), self.volume_ratio_min);
+        }
         if let Some(rm) = &self.remesh {
             d.insert("remesh_operations".into(), rm.ops as f64);
             d.insert("remesh_rebuilds".into(), rm.rebuilds as f64);
             d.insert("remesh_refused".into(), rm.refused as f64);
             d.insert("tissue_nodes".into(), rm.remesher.nodes().len() as f64);
             d.insert("remesh_depth".into(), rm.remesher.stack().len() as f64);
+            d.insert("remesh_energy_released_j".into(), rm.released);
+            d.insert("remesh_energy_jump_max_j".into(), rm.energy_jump_max);
+            d.insert("remesh_tip_jump_max_m".into(), rm.tip_jump_max);
         }
         // The seed's Table 3 "linear-solver iterations": only the CG solver has them.
         if matches!(self.solver, LcpSolver::Cg { .. }) {

@@ -388,6 +388,18 @@ impl FemModel {
         self.t
     }
 
+    /// Elastic energy (J) of the current state, contact included: what the
+    /// needle's tip remeshing measures before and after it changes the mesh.
+    pub fn elastic_energy(&self) -> f64 {
+        self.energies().elastic
+    }
+
+    /// The most compressed tet's volume ratio `V / V0` (see
+    /// [`Solid::min_volume_ratio`]).
+    pub fn min_volume_ratio(&self) -> f64 {
+        self.solid.min_volume_ratio(&self.x)
+    }
+
     /// Node velocities (m/s) and accelerations (m/s^2), in mesh order.
     pub fn motion(&self) -> (&[Vec3], &[Vec3]) {
         (&self.v, &self.a)
