@@ -436,3 +436,44 @@ fn fitted_constants_are_stated_in_the_run_table() {
     assert!(html.contains("fitted, not derived"), "no fitted row");
     assert!(html.contains("chainmail: C = 1214.297 fitted on a calibration cantilever"));
 }
+
+/// A needle run's diagnostics fill the seed's Table 3 (LCP trials) and
+/// Table 2 (frame time by phase) under its scenario, a dash where a run
+/// lacks a column (remesh without `coupling=remesh`); runs without them
+/// get neither table.
+#[test]
+fn needle_diagnostics_fill_the_seeds_tables_2_and_3() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut rows = common::rows();
+    render(tmp.path(), &rows, &common::info()).unwrap();
+    let md = read(&tmp.path().join("report.md"));
+    assert!(!md.contains("the needle seed's Table 2") && !md.contains("the needle seed's Table 3"));
+    let r = rows.iter_mut().find(|r| r.status == Status::Ok).expect("an ok row");
+    for (k, v) in [
+        ("diag_lcp_trials_mean", 1.04),
+        ("diag_frame_ms_mean", 24.5),
+        ("diag_lcp_ms_mean", 3.25),
+        ("diag_tissue_ms_mean", 17.5),
+        ("diag_needle_ms_mean", 0.625),
+    ] {
+        r.metrics.insert(k.into(), v);
+    }
+    render(tmp.path(), &rows, &common::info()).unwrap();
+    let md = read(&tmp.path().join("report.md"));
+    assert!(
+        md.contains("Frame time by phase (the needle seed's Table 2)"),
+        "no Table 2"
+    );
+    assert!(
+        md.contains("Friction-state LCP per run (the needle seed's Table 3)"),
+        "no Table 3"
+    );
+    let table2 = &md[md.find("Frame time by phase").unwrap()..];
+    let row = table2
+        .lines()
+        .find(|l| l.contains("24.5"))
+        .expect("the run's row in Table 2");
+    for cell in ["24.5", "3.25", "17.5", "0.625", "—"] {
+        assert!(row.contains(cell), "{cell} missing from {row}");
+    }
+}

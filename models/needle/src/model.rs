@@ -11,6 +11,7 @@ use crate::pcg::{self, Row};
 use crate::remesh::{Place, Remesher, carry_over};
 use nalgebra::DMatrix;
 use std::collections::BTreeMap;
+use std::time::{Duration, Instant};
 use surgbench_core::{DeviceCommand, Model, NeedleTissue, Observation, SimError, StepStats, TissueBody, Vec3};
 use surgbench_der::DerRod;
 use surgbench_fem::{FemModel, LinearStep};
@@ -106,6 +107,20 @@ impl Geometry {
     }
 }
 
+/// Wall time of each phase of the steps so far (the needle seed's Table 2
+/// columns): the tissue's linear step (assembly, factorization, update),
+/// the needle's, the coupling (geometry, Delassus operator or CG solves,
+/// the LCP's trials, the points' update) and the tip remeshing (operations
+/// and the tissue's rebuild on the new mesh).
+#[derive(Debug, Clone, Copy, Default)]
+struct PhaseTimes {
+    frame: Duration,
+    tissue: Duration,
+    needle: Duration,
+    lcp: Duration,
+    remesh: Duration,
+}
+
 /// The coupled needle-tissue model (module docs).
 pub struct NeedleModel {
     fem: FemModel,
@@ -135,6 +150,7 @@ pub struct NeedleModel {
     /// The smallest tet volume ratio `V / V0` at the end of any step so
     /// far: a point-loaded node squeezes its elements towards collapse.
     volume_ratio_min: f64,
+    times: PhaseTimes,
 }
 
 /// The remeshed variant's state (issue 18): the remesher over the tissue's
@@ -167,6 +183,14 @@ struct Remeshing {
     /// The farthest (m, material coordinates) the tip's node moved in one
     /// step.
     tip_jump_max: f64,
+}
+
+/// The time since `mark`, and `mark` moved to now.
+fn lap(mark: &mut Instant) -> Duration {
+    let now = Instant::now();
+    let d = now - *mark;
+    *mark = now;
+    d
 }
 
 /// The node `e` sits on, if its weights are one-hot.
@@ -203,6 +227,7 @@ impl NeedleModel {
             solver: LcpSolver::Schur,
             remesh: None,
             volume_ratio_min: f64::INFINITY,
+            times: PhaseTimes::default(),
         }
         .pre_inserted()
     }
@@ -987,10 +1012,14 @@ impl NeedleModel {
 
 impl Model for NeedleModel {
     fn step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<StepStats, SimError> {
+        let frame = Instant::now();
         let schur = self.solver == LcpSolver::Schur;
         self.stats.all_steps += 1;
         let lin = self.fem.begin_linear_step_with(dt, cmd.load, schur)?;
+        let mut mark = Instant::now();
+        self.times.tissue += mark - frame;
         self.rod.begin_linear_step(dt, cmd)?;
+        self.times.needle += lap(&mut mark);
         let xt = self.fem.positions();
         let geo = self.geometry(&xt);
         let mut stats = StepStats {
@@ -1038,11 +1067,17 @@ impl Model for NeedleModel {
             self.clamp_share = clamp;
             new_states = sol.states;
         }
+        self.times.lcp += lap(&mut mark);
         self.fem.end_linear_step(lin, &dx)?;
+        self.times.tissue += lap(&mut mark);
         self.rod.end_linear_step(dt, &dz)?;
+        self.times.needle += lap(&mut mark);
         self.update_points(&new_states, &slips);
+        self.times.lcp += lap(&mut mark);
         self.realize()?;
+        self.times.remesh += lap(&mut mark);
         self.volume_ratio_min = self.volume_ratio_min.min(self.fem.min_volume_ratio());
+        self.times.frame += frame.elapsed();
         Ok(stats)
     }
 
@@ -1093,6 +1128,18 @@ impl Model for NeedleModel {
         d.insert("lcp_unresolved_steps".into(), s.unresolved as f64);
         d.insert("tip_fallback_steps".into(), s.tip_fallbacks as f64);
         d.insert("tip_lost".into(), s.tip_lost as f64);
+        // The seed's Table 2: mean wall time per step of each phase (ms;
+        // timings, not results: they change from run to run).
+        let steps = s.all_steps.max(1) as f64;
+        let ms = |t: Duration| t.as_secs_f64() * 1e3 / steps;
+        let t = self.times;
+        d.insert("frame_ms_mean".into(), ms(t.frame));
+        d.insert("tissue_ms_mean".into(), ms(t.tissue));
+        d.insert("needle_ms_mean".into(), ms(t.needle));
+        d.insert("lcp_ms_mean".into(), ms(t.lcp));
+        if self.remesh.is_some() {
+            d.insert("remesh_ms_mean".into(), ms(t.remesh));
+        }
         if self.volume_ratio_min.is_finite() {
             d.insert("tissue_volume_ratio_min".into(), self.volume_ratio_min);
         }

@@ -359,6 +359,20 @@ const LCP_METRICS: [(&str, &str); 7] = [
 /// The seed's own numbers for [`LCP_METRICS`], to read the table against.
 const LCP_SEED_NOTE: &str = "The needle seed (Chentanez et al. 2009, Tables 2-3) reports 1.41 LCP trials per frame on average and 10 at most, 205-413 CG iterations per solve (ours: each step solves once unconstrained and once per trial), and a 130.9 ms frame on 1 thread (38.5 ms on 7) at 13,375 tets; its LCP took 75-83 % of the frame. A dash in the CG columns: the run solved its trials through the Schur complement (lcp_solver=schur), without CG.";
 
+/// Mean wall time per step of each phase of a needle run (the needle
+/// seed's Table 2 columns: frame, LCP, tissue, needle, remesh), from the
+/// model's diagnostics of its first repeat.
+const PHASE_METRICS: [(&str, &str); 5] = [
+    ("diag_frame_ms_mean", "frame [ms]"),
+    ("diag_lcp_ms_mean", "LCP [ms]"),
+    ("diag_tissue_ms_mean", "tissue [ms]"),
+    ("diag_needle_ms_mean", "needle [ms]"),
+    ("diag_remesh_ms_mean", "remesh [ms]"),
+];
+
+/// The seed's own numbers for [`PHASE_METRICS`] and what each phase holds.
+const PHASE_SEED_NOTE: &str = "Mean wall time per step over the first repeat's steps, warm-up included (the ms/step column: the median over all repeats). LCP: the coupling's geometry, the Delassus operator (one tissue solve per point and axis) or the seed's CG solves, the trials and the points' update; tissue: assembly, factorization and update of the tissue's linear step; needle: the same for the rod; remesh: the tip remeshing's operations and the tissue's rebuild on the new mesh (coupling=remesh only). The needle seed (Chentanez et al. 2009, Table 2) reports a 130.9 ms frame on 1 thread and 38.5 ms on 7 for its ProsFB scene at 13,375 tets, the LCP 108.8 and 28.3 ms of it, and its tip remeshing 0.5-0.9 ms per frame. Timings compare within one report only.";
+
 /// Period, damping and phase of every ok run, when the group's runs report
 /// them (free-vibration scenes); `None` for the others.
 fn vibration_table(g: &Group) -> Option<Block> {
@@ -501,6 +515,14 @@ fn scenario_section(g: &Group, sec: &Section, st: &Styles, info: &RunInfo) -> Ve
             "Friction-state LCP per run (the needle seed's Table 3)".into(),
         ));
         b.push(Block::Para(LCP_SEED_NOTE.into()));
+        b.push(t);
+    }
+    if let Some(t) = metrics_table(g, &PHASE_METRICS) {
+        b.push(Block::Heading(
+            3,
+            "Frame time by phase (the needle seed's Table 2)".into(),
+        ));
+        b.push(Block::Para(PHASE_SEED_NOTE.into()));
         b.push(t);
     }
     let others: BTreeSet<&str> = g
