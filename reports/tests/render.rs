@@ -438,7 +438,8 @@ fn fitted_constants_are_stated_in_the_run_table() {
 }
 
 /// A needle run's diagnostics fill the seed's Table 3 (LCP trials) and
-/// Table 2 (frame time by phase) under its scenario, a dash where a run
+/// Table 2 (frame time by phase) under its scenario, its cycle metrics the
+/// mesh table, a dash where a run
 /// lacks a column (remesh without `coupling=remesh`); runs without them
 /// get neither table.
 #[test]
@@ -448,6 +449,7 @@ fn needle_diagnostics_fill_the_seeds_tables_2_and_3() {
     render(tmp.path(), &rows, &common::info()).unwrap();
     let md = read(&tmp.path().join("report.md"));
     assert!(!md.contains("the needle seed's Table 2") && !md.contains("the needle seed's Table 3"));
+    assert!(!md.contains("Tissue mesh over the cycles"));
     let r = rows.iter_mut().find(|r| r.status == Status::Ok).expect("an ok row");
     for (k, v) in [
         ("diag_lcp_trials_mean", 1.04),
@@ -455,6 +457,10 @@ fn needle_diagnostics_fill_the_seeds_tables_2_and_3() {
         ("diag_lcp_ms_mean", 3.25),
         ("diag_tissue_ms_mean", 17.5),
         ("diag_needle_ms_mean", 0.625),
+        ("dihedral_min_deg", 0.398),
+        ("dihedral_max_deg", 120.0),
+        ("withdrawals", 5.0),
+        ("unrestored_withdrawals", 0.0),
     ] {
         r.metrics.insert(k.into(), v);
     }
@@ -468,6 +474,12 @@ fn needle_diagnostics_fill_the_seeds_tables_2_and_3() {
         md.contains("Friction-state LCP per run (the needle seed's Table 3)"),
         "no Table 3"
     );
+    let cycles = &md[md.find("Tissue mesh over the cycles").expect("no cycles table")..];
+    let row = cycles
+        .lines()
+        .find(|l| l.contains("0.398"))
+        .expect("the run's cycles row");
+    assert!(row.contains("| 120 | 5 | 0 |"), "{row}");
     let table2 = &md[md.find("Frame time by phase").unwrap()..];
     let row = table2
         .lines()

@@ -42,6 +42,7 @@ pub fn tissue_observation(t: f64, rest: Vec<Vec3>, nodes: Vec<Vec3>, hand_force:
             nodes,
             volume_error: 0.0,
             inverted: 0,
+            rest_dihedral_deg: None,
         }],
         hand_force,
         ..Default::default()

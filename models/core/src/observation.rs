@@ -45,6 +45,10 @@ pub struct TissueObs {
     pub volume_error: f64,
     /// Count of inverted elements.
     pub inverted: usize,
+    /// Smallest and largest dihedral angle (degrees) of the rest mesh, from
+    /// a model that changes its mesh as it runs (the needle's tip
+    /// remeshing); `None` from the others.
+    pub rest_dihedral_deg: Option<[f64; 2]>,
 }
 
 /// A contact point.

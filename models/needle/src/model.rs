@@ -12,7 +12,9 @@ use crate::remesh::{Place, Remesher, carry_over};
 use nalgebra::DMatrix;
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
-use surgbench_core::{DeviceCommand, Model, NeedleTissue, Observation, SimError, StepStats, TissueBody, Vec3};
+use surgbench_core::{
+    DeviceCommand, Model, NeedleTissue, Observation, SimError, StepStats, TetMesh, TissueBody, Vec3, mesh,
+};
 use surgbench_der::DerRod;
 use surgbench_fem::{FemModel, LinearStep};
 
@@ -151,6 +153,12 @@ pub struct NeedleModel {
     /// far: a point-loaded node squeezes its elements towards collapse.
     volume_ratio_min: f64,
     times: PhaseTimes,
+    /// Smallest and largest dihedral angle (deg) of the rest mesh as built,
+    /// and now: that range widened by the tets around the remesher's nodes
+    /// (every tet an operation made has one of them; the others are the
+    /// mesh's own).
+    dihedral_built: [f64; 2],
+    dihedral: [f64; 2],
 }
 
 /// The remeshed variant's state (issue 18): the remesher over the tissue's
@@ -185,6 +193,27 @@ struct Remeshing {
     tip_jump_max: f64,
 }
 
+/// The dihedral range (deg) of `mesh` (the remesher's, at rest) given that
+/// of the mesh as built: widened by every tet around a node of the
+/// remesher's operations. Every tet an operation made or reshaped has such
+/// a node; the others are tets as built, whose range `built` bounds.
+fn remeshed_dihedral(remesher: &Remesher, mesh: &TetMesh, built: [f64; 2]) -> [f64; 2] {
+    let mut tets: Vec<usize> = remesher
+        .stack()
+        .iter()
+        .flat_map(|o| remesher.tets_of(o.node).iter().copied())
+        .collect();
+    tets.sort_unstable();
+    tets.dedup();
+    tets.iter().fold(built, |[lo, hi], &t| {
+        let a = mesh::dihedral_angles(mesh.tets[t].map(|i| mesh.nodes[i]));
+        a.iter().fold([lo, hi], |[lo, hi], x| {
+            let d = x.to_degrees();
+            [lo.min(d), hi.max(d)]
+        })
+    })
+}
+
 /// The time since `mark`, and `mark` moved to now.
 fn lap(mark: &mut Instant) -> Duration {
     let now = Instant::now();
@@ -211,6 +240,12 @@ impl NeedleModel {
         spacing: f64,
         dt: f64,
     ) -> Self {
+        let built = TetMesh {
+            nodes: fem.observe().tissues.swap_remove(0).rest,
+            tets: tets.clone(),
+        };
+        let q = mesh::quality(&built);
+        let dihedral = [q.min_dihedral_deg, q.max_dihedral_deg];
         Self {
             fem,
             rod,
@@ -228,6 +263,8 @@ impl NeedleModel {
             remesh: None,
             volume_ratio_min: f64::INFINITY,
             times: PhaseTimes::default(),
+            dihedral_built: dihedral,
+            dihedral,
         }
         .pre_inserted()
     }
@@ -419,6 +456,7 @@ impl NeedleModel {
             .map_err(|e| fail(format!("tissue on the remeshed mesh: {e}")))?;
         let change = before - self.fem.elastic_energy();
         rm.released += change;
+        self.dihedral = remeshed_dihedral(&rm.remesher, mesh, self.dihedral_built);
         rm.energy_jump_max = rm.energy_jump_max.max(change.abs());
         rm.rebuilds += 1;
         self.tets = mesh.tets.clone();
@@ -1086,6 +1124,9 @@ impl Model for NeedleModel {
     fn observe(&self) -> Observation {
         let mut obs = self.fem.observe();
         obs.rods = vec![self.rod.rod_obs()];
+        if let Some(t) = obs.tissues.first_mut() {
+            t.rest_dihedral_deg = Some(self.dihedral);
+        }
         let (f, tq) = self.rod.hand_wrench();
         obs.hand_force = f + self.clamp_share;
         obs.hand_torque = tq;

@@ -373,6 +373,18 @@ const PHASE_METRICS: [(&str, &str); 5] = [
 /// The seed's own numbers for [`PHASE_METRICS`] and what each phase holds.
 const PHASE_SEED_NOTE: &str = "Mean wall time per step over the first repeat's steps, warm-up included (the ms/step column: the median over all repeats). LCP: the coupling's geometry, the Delassus operator (one tissue solve per point and axis) or the seed's CG solves, the trials and the points' update; tissue: assembly, factorization and update of the tissue's linear step; needle: the same for the rod; remesh: the tip remeshing's operations and the tissue's rebuild on the new mesh (coupling=remesh only). The needle seed (Chentanez et al. 2009, Table 2) reports a 130.9 ms frame on 1 thread and 38.5 ms on 7 for its ProsFB scene at 13,375 tets, the LCP 108.8 and 28.3 ms of it, and its tip remeshing 0.5-0.9 ms per frame. Timings compare within one report only.";
 
+/// The tissue mesh a remeshing model leaves after insertion-retraction
+/// cycles (`needle-cycles`): its dihedral range after the first twenty
+/// steps, the full withdrawals and those that did not give back the mesh
+/// as built, and the most compressed tet over the run.
+const CYCLE_METRICS: [(&str, &str); 5] = [
+    ("dihedral_min_deg", "dihedral min [deg]"),
+    ("dihedral_max_deg", "dihedral max [deg]"),
+    ("withdrawals", "withdrawals"),
+    ("unrestored_withdrawals", "mesh not restored"),
+    ("diag_tissue_volume_ratio_min", "V/V0 min"),
+];
+
 /// Period, damping and phase of every ok run, when the group's runs report
 /// them (free-vibration scenes); `None` for the others.
 fn vibration_table(g: &Group) -> Option<Block> {
@@ -507,6 +519,15 @@ fn scenario_section(g: &Group, sec: &Section, st: &Styles, info: &RunInfo) -> Ve
     b.push(scenario_table(g, st));
     if let Some(t) = vibration_table(g) {
         b.push(Block::Heading(3, "Period and damping (ok runs)".into()));
+        b.push(t);
+    }
+    if g.rows.iter().any(|r| r.metrics.contains_key("withdrawals"))
+        && let Some(t) = metrics_table(g, &CYCLE_METRICS)
+    {
+        b.push(Block::Heading(
+            3,
+            "Tissue mesh over the cycles (the needle seed: 10.3-160 deg)".into(),
+        ));
         b.push(t);
     }
     if let Some(t) = metrics_table(g, &LCP_METRICS) {

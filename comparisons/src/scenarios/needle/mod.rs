@@ -13,18 +13,23 @@
 //! diagonal). The model reports `Observation::hand_force` as the
 //! force the needle exerts on the hand: the hand pushes with its negative.
 
+mod cycles;
 mod stick_slip;
 mod straight;
 
+pub use cycles::{CyclesParams, NEEDLE_CYCLES};
 pub use stick_slip::{NEEDLE_STICK_SLIP, StickSlipParams};
 pub use straight::{NEEDLE_STRAIGHT, StraightParams};
 
 use crate::scenario::{Scenario, Sweep, UsageError};
-use surgbench_core::{Fidelity, Iso3, RodBody, SolidMaterial, TetMesh, Vec3, mesh};
+use surgbench_core::{
+    Body, ControlKey, ControlTimeline, Fidelity, Iso3, NeedleTissue, RodBody, Scene, SolidMaterial, TetMesh,
+    TissueBody, Vec3, mesh,
+};
 
 /// Every needle scenario, in report order.
 pub fn all() -> Vec<&'static dyn Scenario> {
-    vec![&NEEDLE_STRAIGHT, &NEEDLE_STICK_SLIP]
+    vec![&NEEDLE_STRAIGHT, &NEEDLE_STICK_SLIP, &NEEDLE_CYCLES]
 }
 
 /// Finest mesh level: level 1 is 16 x 8 x 8 cells (6,144 tets); level 2
@@ -86,6 +91,42 @@ impl GelBlock {
             tol,
         })
     }
+}
+
+/// The gel block of [`GelBlock::new`] held at its far face
+/// `x = length` (m), and the tissue body of it.
+fn held_block(
+    scenario: &str,
+    level: usize,
+    length: f64,
+    width: f64,
+    gel: [f64; 3],
+) -> Result<(GelBlock, TissueBody), UsageError> {
+    let block = GelBlock::new(scenario, level, length, width, gel)?;
+    let mut tissue = TissueBody::new(block.mesh.clone(), block.material);
+    tissue.fixed_nodes = mesh::nodes_on_plane(&block.mesh, 0, length, block.tol);
+    Ok((block, tissue))
+}
+
+/// The scene `id`: `needle` fed by the base positions `feed` (`(t, x)`,
+/// s and m along +x) into `tissue` for `duration` (s), the two meeting
+/// through `interaction`.
+fn needle_scene(
+    id: &str,
+    needle: RodBody,
+    tissue: TissueBody,
+    feed: &[(f64, f64)],
+    duration: f64,
+    interaction: NeedleTissue,
+) -> Scene {
+    let mut scene = Scene::empty(id);
+    scene.bodies = vec![needle.into(), Body::Tissue(tissue)];
+    scene.duration = duration;
+    scene.control = ControlTimeline {
+        keys: feed.iter().map(|&(t, x)| ControlKey::feed(t, x, 0.0)).collect(),
+    };
+    scene.needle = Some(interaction);
+    scene
 }
 
 /// A steel needle (Poisson ratio 0.3, 7,850 kg/m^3) of `length` and

@@ -11,7 +11,7 @@ use crate::params;
 use crate::scenario::{
     Declared, Inputs, Metrics, ParamSet, ParamSpec, Range, Reference, ScenarioInfo, ScenarioRun, Scorer,
 };
-use surgbench_core::{Body, ControlKey, ControlTimeline, Family, NeedleTissue, Observation, Scene, TissueBody, mesh};
+use surgbench_core::{Family, NeedleTissue, Observation, Scene};
 
 params! {
     /// Parameters of `needle-straight`. Gel: E and nu of 10 wt% gelatin as
@@ -200,9 +200,7 @@ fn build(p: &StraightParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError>
         )));
     }
     let gel = [p.youngs_modulus, p.poisson_ratio, p.density];
-    let block = GelBlock::new(id, level, p.block_length, p.block_width, gel)?;
-    let mut tissue = TissueBody::new(block.mesh.clone(), block.material);
-    tissue.fixed_nodes = mesh::nodes_on_plane(&block.mesh, 0, p.block_length, block.tol);
+    let (block, tissue) = held_block(id, level, p.block_length, p.block_width, gel)?;
     let needle = needle(
         p.needle_length,
         p.needle_radius,
@@ -214,23 +212,19 @@ fn build(p: &StraightParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError>
     let t_insert = x_in / v;
     let t_hold = t_insert + p.hold_time;
     let t_end = t_hold + p.retraction / v;
-    let mut scene = Scene::empty(id);
-    scene.bodies = vec![needle.into(), Body::Tissue(tissue)];
-    scene.duration = t_end.max(t_hold + 1e-3);
-    scene.control = ControlTimeline {
-        keys: vec![
-            ControlKey::feed(0.0, 0.0, 0.0),
-            ControlKey::feed(t_insert, x_in, 0.0),
-            ControlKey::feed(t_hold, x_in, 0.0),
-            ControlKey::feed(t_end, x_in - p.retraction, 0.0),
-        ],
-    };
-    scene.needle = Some(NeedleTissue {
+    let feed = [
+        (0.0, 0.0),
+        (t_insert, x_in),
+        (t_hold, x_in),
+        (t_end, x_in - p.retraction),
+    ];
+    let interaction = NeedleTissue {
         friction_per_length: p.friction_per_length,
         cutting_force: p.cutting_force,
         viscous_friction: p.viscous_friction,
         bevel_angle: 0.0,
-    });
+    };
+    let scene = needle_scene(id, needle, tissue, &feed, t_end.max(t_hold + 1e-3), interaction);
     let (f_perlen, f_cut) = (p.friction_per_length, p.cutting_force);
     // Work of the largest push over the whole stroke, ten times over.
     let energy = 10.0 * (f_cut + f_perlen * p.depth) * x_in + 1e-9;

@@ -22,6 +22,7 @@ impl Model for FemModel {
                 velocities: self.v.clone(),
                 volume_error: self.solid.volume_error(&self.x),
                 inverted: self.inverted,
+                rest_dihedral_deg: None,
             }],
             hand_force: self.hand_force,
             energy: self.energies(),

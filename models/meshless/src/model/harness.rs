@@ -74,6 +74,7 @@ impl Model for MeshlessTissue {
                 velocities: self.v.clone(),
                 volume_error: self.volume_error(),
                 inverted,
+                rest_dihedral_deg: None,
             }],
             hand_force: self.hand_force,
             energy: self.energies(),

@@ -666,6 +666,7 @@ impl Model for PbdTissue {
                 velocities: self.v.clone(),
                 volume_error,
                 inverted,
+                rest_dihedral_deg: None,
             }],
             contacts: Vec::new(),
             hand_force: self.hand_force,
