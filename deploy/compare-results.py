@@ -5,7 +5,9 @@ Usage: compare-results.py A/results.csv B/results.csv
 
 Both files must have the same rows in the same order and, in every column
 except the timing ones (wall-clock figures that differ from run to run and
-machine to machine) and `host`, the very same text: results.csv writes each
+machine to machine: the fixed ones below and a model's timing diagnostics,
+`diag_*_ms_mean`, e.g. the needle's time per step by phase) and `host`, the
+very same text: results.csv writes each
 number in its shortest round-trip form, so equal text is equal bits.
 Exit 0 when they agree, 1 (with the differences listed) when they do not.
 """
@@ -26,6 +28,11 @@ TIMING = {
 }
 
 
+def is_timing(column):
+    """A wall-clock column: a fixed one, or a model's timing diagnostic."""
+    return column in TIMING or (column.startswith("diag_") and column.endswith("_ms_mean"))
+
+
 def read(path):
     with open(path, newline="") as f:
         rows = list(csv.DictReader(f))
@@ -40,8 +47,8 @@ def main():
     problems = []
     if len(a) != len(b):
         problems.append(f"{len(a)} rows in {sys.argv[1]}, {len(b)} in {sys.argv[2]}")
-    cols_a = set(a[0].keys()) - TIMING if a else set()
-    cols_b = set(b[0].keys()) - TIMING if b else set()
+    cols_a = {c for c in a[0].keys() if not is_timing(c)} if a else set()
+    cols_b = {c for c in b[0].keys() if not is_timing(c)} if b else set()
     if cols_a != cols_b:
         problems.append(f"columns differ: only in A {sorted(cols_a - cols_b)}, only in B {sorted(cols_b - cols_a)}")
     compared = 0
