@@ -115,7 +115,16 @@ fn check_models(select: impl Fn(&str) -> bool) -> Vec<String> {
 /// by rod half ([`PAIR_RODS`]), every other registered model (a new one,
 /// chainmail's pairs) in
 /// [`every_other_model_runs_every_scene_it_supports_at_its_defaults`].
-const OWN_TEST: &[&str] = &["der", "chainmail", "pbd-rod", "pbd-tissue", "fem", "meshless", "needle"];
+const OWN_TEST: &[&str] = &[
+    "der",
+    "chainmail",
+    "pbd-rod",
+    "pbd-tissue",
+    "fem",
+    "meshless",
+    "needle",
+    "multibody",
+];
 
 /// One test per model, so the harness spreads them over the cores.
 macro_rules! at_defaults_test {
@@ -137,6 +146,7 @@ at_defaults_test!(pbd_tissue_at_its_defaults, "pbd-tissue");
 at_defaults_test!(fem_at_its_defaults, "fem");
 at_defaults_test!(meshless_at_its_defaults, "meshless");
 at_defaults_test!(needle_at_its_defaults, "needle");
+at_defaults_test!(multibody_at_its_defaults, "multibody");
 
 /// The rod x tissue pairs by rod half, so the two halves' compliant-vessel
 /// runs (20-45 s each) spread over the cores: one test held them all

@@ -58,6 +58,7 @@ pub fn models() -> Vec<Registered> {
         surgbench_fem::FemFactory,
         surgbench_meshless::MeshlessFactory,
         surgbench_needle::NeedleFactory,
+        surgbench_multibody::MultibodyFactory,
     ];
     v.extend(PAIRS.iter().map(|p| Registered {
         factory: p,

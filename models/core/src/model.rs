@@ -224,3 +224,19 @@ pub fn check_capabilities(id: &str, have: &[Capability], scene: &Scene) -> Resul
         Err(Unsupported::new(format!("{id} does not model: {}", missing.join(", "))))
     }
 }
+
+/// [`ModelFactory::check`] of a model of one rod and nothing else: the
+/// scene has exactly one rod and no tissue, and `have` covers what it
+/// requires ([`check_capabilities`]).
+pub fn check_one_rod(id: &str, have: &[Capability], scene: &Scene) -> Result<(), Unsupported> {
+    let rods = scene.rods().count();
+    if rods != 1 {
+        return Err(Unsupported::new(format!(
+            "{id} simulates exactly one rod, the scene has {rods}"
+        )));
+    }
+    if scene.tissues().next().is_some() {
+        return Err(Unsupported::new(format!("{id} does not model tissue bodies")));
+    }
+    check_capabilities(id, have, scene)
+}

@@ -131,16 +131,7 @@ impl ModelFactory for DerFactory {
     }
 
     fn check(&self, scene: &Scene) -> Result<(), Unsupported> {
-        let rods = scene.rods().count();
-        if rods != 1 {
-            return Err(Unsupported::new(format!(
-                "der simulates exactly one rod, the scene has {rods}"
-            )));
-        }
-        if scene.tissues().next().is_some() {
-            return Err(Unsupported::new("der does not model tissue bodies"));
-        }
-        surgbench_core::model::check_capabilities(self.id(), self.capabilities(), scene)
+        surgbench_core::model::check_one_rod(self.id(), self.capabilities(), scene)
     }
 
     fn build_resolved(&self, scene: &Scene, settings: &Settings) -> Result<Box<dyn Model>, BuildError> {

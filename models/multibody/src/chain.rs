@@ -1,0 +1,691 @@
+//! [`RigidChain`]: a rod as rapier3d rigid links joined by spherical joints
+//! with bending and twisting springs, clamped to a fixed base.
+//!
+//! # Discretization (the Hencky bar chain with joints at cell centres)
+//!
+//! The rod of length `L` is cut into `n` cells of length `h = L / n`. Joint
+//! `j` sits at the centre of cell `j`, at arclength `s_j = (j + 1/2) h`; the
+//! half cell `[0, h/2]` is rigid with the clamp, links `0..n-1` run from
+//! joint to joint and the last one is half a cell long, from `L - h/2` to the
+//! tip. Each joint carries the elastic energy of its cell: for a bend angle
+//! `phi` the discrete curvature integrated over the cell is `phi` (Bergou et
+//! al. 2008, Sec. 4.2, the integrated curvature of a vertex over its Voronoi
+//! length), so `E_cell = EI phi^2 / (2 h)` and the joint spring is
+//! `k_b = EI(s_j) / h`, likewise `k_t = GJ(s_j) / h` for twist (the bar-chain
+//! model of Hencky 1921; Wang, Zhang & Challamel, *Discrete and Non-Local
+//! Models*, 2015). Since the cells tile `[0, L]`, the chain's compliance is the
+//! midpoint rule of `int M m / EI ds`: exact for a constant moment (tip
+//! torque, tip moment), second order in `h` otherwise (a tip force or
+//! gravity, whose moment is exact at the joints because every link's weight
+//! acts at its own centre of mass).
+//!
+//! # What rapier does with it
+//!
+//! - `joint = multibody`: rapier's reduced-coordinate multibody (Featherstone
+//!   articulated chain, dense generalized mass matrix solved by LU each
+//!   step). The springs are rapier's implicit joint springs: the generalized
+//!   force `-k (q - q_rest)` integrated by backward Euler, so a spring never
+//!   makes the step unstable but takes `1 - exp(-pi omega dt)` of a mode's
+//!   amplitude per period (the same as any backward-Euler model). For a
+//!   spherical joint rapier's `q` is the time integral of the joint's
+//!   angular velocity, which is the rotation vector only while the joint
+//!   turns about a fixed axis; [`RigidChain::coord_drift`] measures how far
+//!   it has drifted from the true relative rotation.
+//! - `joint = impulse`: maximal coordinates, every link a free rigid body,
+//!   the joints velocity constraints solved iteratively (soft TGS with
+//!   `substeps` substeps and `iterations` inner iterations), the springs
+//!   rapier's force-based joint motors. Joints can open: see
+//!   [`RigidChain::max_joint_gap`].
+//!
+//! Gravity acts on every link; a tip force acts on the tip point of the last
+//! link and a tip torque on the last link. The hand force is the force the
+//! chain exerts on the clamp: the external forces minus the rate of change
+//! of the chain's momentum (Newton-Euler on the whole chain). SI units.
+
+use rapier3d_f64::glamx::{DQuat, DVec3};
+use rapier3d_f64::prelude::*;
+use surgbench_core::beam::first_bending_frequency;
+use surgbench_core::{DeviceCommand, EnergyObs, Iso3, Mat3, RodBody, RodObs, RodVelocity, SimError, Vec3};
+
+/// How the links are joined.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum JointKind {
+    /// rapier's reduced-coordinate multibody joints (the default).
+    Multibody,
+    /// rapier's impulse joints: maximal coordinates, iterative constraints.
+    Impulse,
+}
+
+/// Settings of a chain.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ChainParams {
+    /// Number of links (cells of the rod), at least 1.
+    pub links: usize,
+    /// How the links are joined.
+    pub joint: JointKind,
+    /// rapier's solver substeps per step (`num_solver_iterations`).
+    pub substeps: usize,
+    /// rapier's inner PGS iterations per substep (`num_internal_pgs_iterations`).
+    pub iterations: usize,
+    /// Damping ratio of the first cantilever bending mode, realised by joint
+    /// dampers proportional to the joint springs (`c = 2 zeta / omega_1 k`,
+    /// stiffness-proportional damping: every mode `j` gets `zeta omega_j / omega_1`).
+    pub damping_ratio: f64,
+}
+
+impl Default for ChainParams {
+    fn default() -> Self {
+        Self {
+            links: 40,
+            joint: JointKind::Multibody,
+            substeps: 4,
+            iterations: 1,
+            damping_ratio: 0.0,
+        }
+    }
+}
+
+/// One rigid link: its body and its mass properties in its own frame
+/// (origin at the joint it hangs from, `x` along the rod).
+#[derive(Debug, Clone, Copy)]
+struct Link {
+    handle: RigidBodyHandle,
+    length: f64,
+    mass: f64,
+    com: f64,
+    /// Principal moments about the centre of mass: axial, transverse.
+    inertia: [f64; 2],
+}
+
+/// The joints, by kind.
+#[derive(Debug, Clone)]
+enum Joints {
+    Multibody(Vec<MultibodyJointHandle>),
+    /// Impulse joints (the world holds them; nothing to read back).
+    Impulse,
+}
+
+/// A rod as a chain of rapier rigid links clamped to a fixed base.
+pub struct RigidChain {
+    world: PhysicsWorld,
+    base: RigidBodyHandle,
+    /// The scene's clamp pose (before the operator's rotation).
+    clamp: Iso3,
+    /// The clamp pose the chain was built at (the scene's, turned by the
+    /// operator's rotation at `t = 0`); fixed for the run.
+    clamp_now: Iso3,
+    links: Vec<Link>,
+    joints: Joints,
+    /// Arclength of every joint (m).
+    joint_s: Vec<f64>,
+    /// Spring constants of every joint: twist, bend, bend (N m/rad).
+    stiffness: Vec<[f64; 3]>,
+    body: RodBody,
+    /// Mass (kg) and centre of mass (m from the clamp) of the half cell the
+    /// clamp holds: its weight reaches the hand too.
+    stub: (f64, f64),
+    gravity: Vec3,
+    time: f64,
+    /// Linear momentum and angular momentum about the clamp point after the
+    /// last step, for the hand force.
+    momentum: (Vec3, Vec3),
+    hand: (Vec3, Vec3),
+}
+
+fn dv(v: &Vec3) -> DVec3 {
+    DVec3::new(v.x, v.y, v.z)
+}
+
+fn nv(v: DVec3) -> Vec3 {
+    Vec3::new(v.x, v.y, v.z)
+}
+
+/// nalgebra isometry to rapier pose.
+fn to_pose(p: &Iso3) -> Pose {
+    let q = p.rotation.quaternion();
+    Pose::from_parts(
+        dv(&p.translation.vector),
+        DQuat::from_xyzw(q.i, q.j, q.k, q.w).normalize(),
+    )
+}
+
+/// Rotation matrix of a rapier rotation.
+fn to_mat(r: &DQuat) -> Mat3 {
+    let (x, y, z) = (r.mul_vec3(DVec3::X), r.mul_vec3(DVec3::Y), r.mul_vec3(DVec3::Z));
+    Mat3::from_columns(&[nv(x), nv(y), nv(z)])
+}
+
+/// Mass, centre of mass (local `x`) and principal moments (axial,
+/// transverse, about the centre of mass) of the piece `[a, b]` of the rod,
+/// each section a solid cylinder, combined by the parallel-axis theorem.
+fn piece_mass(body: &RodBody, a: f64, b: f64) -> (f64, f64, [f64; 2]) {
+    let mut parts = Vec::new();
+    let mut start = 0.0;
+    for sec in &body.sections {
+        let (lo, hi) = (start.max(a), sec.until.min(b));
+        if hi > lo {
+            let m = sec.density * sec.area() * (hi - lo);
+            parts.push((m, 0.5 * (lo + hi) - a, hi - lo, sec.radius));
+        }
+        start = sec.until;
+    }
+    let mass: f64 = parts.iter().map(|p| p.0).sum();
+    let com = parts.iter().map(|p| p.0 * p.1).sum::<f64>() / mass;
+    let axial = parts.iter().map(|p| 0.5 * p.0 * p.3 * p.3).sum();
+    let trans = parts
+        .iter()
+        .map(|&(m, c, len, r)| m * (3.0 * r * r + len * len) / 12.0 + m * (c - com).powi(2))
+        .sum();
+    (mass, com, [axial, trans])
+}
+
+impl RigidChain {
+    /// Build the chain for `body` (clamp pose `body.base` turned by
+    /// `rotation` rad about its axis) under `gravity` (m/s^2).
+    ///
+    /// The clamp is a fixed rapier body. With a kinematic one, rapier 0.36.1
+    /// advances the multibody's joint positions by twice its joint
+    /// velocities each step (measured: a one-link chain oscillated sqrt(2)
+    /// too fast with twice the set joint rate; with a fixed root it keeps its
+    /// frequency and energy), so this version does not move its clamp:
+    /// [`RigidChain::step`] refuses a command that would.
+    pub fn new(body: &RodBody, gravity: Vec3, p: &ChainParams, rotation: f64) -> Result<Self, String> {
+        body.validate()?;
+        if p.links == 0 {
+            return Err("the chain needs at least one link".into());
+        }
+        if !(p.damping_ratio >= 0.0 && p.damping_ratio.is_finite()) {
+            return Err(format!("damping ratio must be >= 0, got {}", p.damping_ratio));
+        }
+        let n = p.links;
+        let h = body.length / n as f64;
+        let joint_s: Vec<f64> = (0..n).map(|j| (j as f64 + 0.5) * h).collect();
+        let mut world = PhysicsWorld::new();
+        world.gravity = dv(&gravity);
+        world.integration_parameters.num_solver_iterations = p.substeps.max(1);
+        world.integration_parameters.num_internal_pgs_iterations = p.iterations.max(1);
+        let clamp = body.base;
+        let clamp_now = clamp * turn(rotation);
+        let base = world.insert_body(RigidBodyBuilder::fixed().pose(to_pose(&clamp_now)));
+        let mut links = Vec::with_capacity(n);
+        for (k, &s) in joint_s.iter().enumerate() {
+            let end = if k + 1 < n { joint_s[k + 1] } else { body.length };
+            let (mass, com, inertia) = piece_mass(body, s, end);
+            let pose = clamp_now * Iso3::translation(s, 0.0, 0.0);
+            let mprops = MassProperties::new(
+                DVec3::new(com, 0.0, 0.0),
+                mass,
+                DVec3::new(inertia[0], inertia[1], inertia[1]),
+            );
+            let handle = world.insert_body(
+                RigidBodyBuilder::dynamic()
+                    .pose(to_pose(&pose))
+                    .additional_mass_properties(mprops)
+                    .can_sleep(false),
+            );
+            links.push(Link {
+                handle,
+                length: end - s,
+                mass,
+                com,
+                inertia,
+            });
+        }
+        let stiffness: Vec<[f64; 3]> = joint_s
+            .iter()
+            .map(|&s| {
+                let sec = body.section_at(s);
+                let (ei, gj) = (
+                    sec.youngs_modulus * sec.second_moment(),
+                    sec.shear_modulus() * sec.polar_moment(),
+                );
+                [gj / h, ei / h, ei / h]
+            })
+            .collect();
+        // Stiffness-proportional dampers: zeta_1 = beta omega_1 / 2.
+        let omega1 = first_bending_frequency(body.section_at(0.0), body.length);
+        let beta = 2.0 * p.damping_ratio / omega1;
+        let anchor = |k: usize| if k == 0 { joint_s[0] } else { links[k - 1].length };
+        let parent = |k: usize| if k == 0 { base } else { links[k - 1].handle };
+        let joints = match p.joint {
+            JointKind::Multibody => {
+                let mut handles = Vec::with_capacity(n);
+                for k in 0..n {
+                    let joint = SphericalJointBuilder::new()
+                        .local_anchor1(DVec3::new(anchor(k), 0.0, 0.0))
+                        .local_anchor2(DVec3::ZERO)
+                        .contacts_enabled(false);
+                    let h = world
+                        .insert_multibody_joint(parent(k), links[k].handle, joint)
+                        .ok_or("rapier refused a multibody joint")?;
+                    let (mb, id) = world.multibody_joints.get_mut(h).ok_or("joint lost")?;
+                    let link = mb.link_mut(id).ok_or("link lost")?;
+                    for (a, &kk) in stiffness[k].iter().enumerate() {
+                        link.joint.set_spring(3 + a, kk, 0.0);
+                    }
+                    handles.push(h);
+                }
+                // Replace rapier's default joint damping (0.1 N m s/rad per
+                // angular DOF) by the stated dampers.
+                // The fixed root's free joint is dropped (its pose read
+                // from the base body) when the forward kinematics runs.
+                let (mb, _) = world.multibody_joints.get_mut(handles[0]).ok_or("joint lost")?;
+                mb.forward_kinematics(&world.bodies, true);
+                if mb.ndofs() != 3 * n {
+                    return Err(format!("the multibody has {} DOFs, expected {}", mb.ndofs(), 3 * n));
+                }
+                let mut ids = Vec::with_capacity(n);
+                for &h in &handles {
+                    ids.push(world.multibody_joints.get(h).ok_or("joint lost")?.1);
+                }
+                let (mb, _) = world.multibody_joints.get_mut(handles[0]).ok_or("joint lost")?;
+                let ndofs: Vec<usize> = mb.links().map(|l| l.joint().ndofs()).collect();
+                for (k, &id) in ids.iter().enumerate() {
+                    let offset: usize = ndofs[..id].iter().sum();
+                    for a in 0..3 {
+                        mb.damping_mut()[offset + a] = beta * stiffness[k][a];
+                    }
+                }
+                Joints::Multibody(handles)
+            }
+            JointKind::Impulse => {
+                for k in 0..n {
+                    let mut joint = SphericalJointBuilder::new()
+                        .local_anchor1(DVec3::new(anchor(k), 0.0, 0.0))
+                        .local_anchor2(DVec3::ZERO)
+                        .contacts_enabled(false);
+                    for (a, axis) in [JointAxis::AngX, JointAxis::AngY, JointAxis::AngZ]
+                        .into_iter()
+                        .enumerate()
+                    {
+                        let kk = stiffness[k][a];
+                        joint =
+                            joint
+                                .motor_model(axis, MotorModel::ForceBased)
+                                .motor_position(axis, 0.0, kk, beta * kk);
+                    }
+                    world.insert_impulse_joint(parent(k), links[k].handle, joint);
+                }
+                Joints::Impulse
+            }
+        };
+        let mut chain = Self {
+            world,
+            base,
+            clamp,
+            clamp_now,
+            links,
+            joints,
+            joint_s,
+            stiffness,
+            body: body.clone(),
+            stub: {
+                let (m, com, _) = piece_mass(body, 0.0, 0.5 * h);
+                (m, com)
+            },
+            gravity,
+            time: 0.0,
+            momentum: (Vec3::zeros(), Vec3::zeros()),
+            hand: (Vec3::zeros(), Vec3::zeros()),
+        };
+        if let Some(v) = &body.initial_velocity {
+            chain.set_initial_velocity(v);
+        }
+        chain.momentum = chain.momenta();
+        chain.hand = chain.external_wrench();
+        Ok(chain)
+    }
+
+    /// Start the links moving with the field `v` sampled at each link's
+    /// centre of mass: its angular velocity, and for free (impulse-joint)
+    /// links its velocity too; a multibody's link velocities follow from
+    /// the joint rates `R_parent^T (omega_k - omega_parent)`.
+    fn set_initial_velocity(&mut self, v: &RodVelocity) {
+        let mid = |k: usize, l: &Link| self.joint_s[k] + l.com;
+        match &self.joints {
+            Joints::Impulse => {
+                for (k, l) in self.links.iter().enumerate() {
+                    let (lin, ang) = v.at(mid(k, l));
+                    let rb = &mut self.world.bodies[l.handle];
+                    rb.set_linvel(dv(&lin), true);
+                    rb.set_angvel(dv(&ang), true);
+                }
+            }
+            Joints::Multibody(h) => {
+                let omega: Vec<Vec3> = self.links.iter().enumerate().map(|(k, l)| v.at(mid(k, l)).1).collect();
+                let rot: Vec<DQuat> = self
+                    .links
+                    .iter()
+                    .map(|l| self.world.bodies[l.handle].position().rotation)
+                    .collect();
+                let ids: Vec<usize> = h
+                    .iter()
+                    .filter_map(|&jh| self.world.multibody_joints.get(jh).map(|x| x.1))
+                    .collect();
+                let base_rot = self.world.bodies[self.base].position().rotation;
+                let Some((mb, _)) = self.world.multibody_joints.get_mut(h[0]) else {
+                    return;
+                };
+                let ndofs: Vec<usize> = mb.links().map(|l| l.joint().ndofs()).collect();
+                for (k, &id) in ids.iter().enumerate() {
+                    let (parent_rot, parent_omega) = if k == 0 {
+                        (base_rot, Vec3::zeros())
+                    } else {
+                        (rot[k - 1], omega[k - 1])
+                    };
+                    let rate = parent_rot.inverse().mul_vec3(dv(&(omega[k] - parent_omega)));
+                    let offset: usize = ndofs[..id].iter().sum();
+                    let mut gv = mb.generalized_velocity_mut();
+                    for a in 0..3 {
+                        gv[offset + a] = rate[a];
+                    }
+                }
+                // The links' body velocities from the joint rates, by the
+                // chain's kinematics (rapier writes them back only in a
+                // step, and reads them in the first one: Coriolis terms).
+                let mut joint_v = Vec3::zeros();
+                for k in 0..self.links.len() {
+                    let x = self.joint_point(k);
+                    if k > 0 {
+                        joint_v += omega[k - 1].cross(&(x - self.joint_point(k - 1)));
+                    }
+                    let (com, ..) = self.link_state(k);
+                    let v = joint_v + omega[k].cross(&(com - x));
+                    let rb = &mut self.world.bodies[self.links[k].handle];
+                    rb.set_linvel(dv(&v), true);
+                    rb.set_angvel(dv(&omega[k]), true);
+                }
+            }
+        }
+    }
+
+    /// Simulated time (s).
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Number of links.
+    pub fn num_links(&self) -> usize {
+        self.links.len()
+    }
+
+    /// Spring constants (twist, bend, bend; N m/rad) of joint `j`.
+    pub fn joint_stiffness(&self, j: usize) -> [f64; 3] {
+        self.stiffness[j]
+    }
+
+    /// Arclength of joint `j` from the clamp (m).
+    pub fn joint_arclength(&self, j: usize) -> f64 {
+        self.joint_s[j]
+    }
+
+    /// Pose of link `k` (its joint end).
+    fn link_pose(&self, k: usize) -> Pose {
+        *self.world.bodies[self.links[k].handle].position()
+    }
+
+    /// Tip point (m).
+    pub fn tip(&self) -> Vec3 {
+        let k = self.links.len() - 1;
+        nv(self
+            .link_pose(k)
+            .transform_point(DVec3::new(self.links[k].length, 0.0, 0.0)))
+    }
+
+    /// Rotation of joint `j`'s child relative to its parent, as a rotation
+    /// vector in the parent's frame (rad): the joint's geometric bend and twist.
+    pub fn relative_rotation(&self, j: usize) -> Vec3 {
+        let parent = if j == 0 {
+            self.clamp_now_rotation()
+        } else {
+            self.link_pose(j - 1).rotation
+        };
+        let child = self.link_pose(j).rotation;
+        nv((parent.inverse() * child).to_scaled_axis())
+    }
+
+    fn clamp_now_rotation(&self) -> DQuat {
+        self.world.bodies[self.base].position().rotation
+    }
+
+    /// Largest difference (rad) between rapier's joint coordinates (what its
+    /// springs act on: the integrated joint angular velocity) and the true
+    /// relative rotation vector, over the joints; 0 for impulse joints,
+    /// whose motors read the relative rotation itself.
+    pub fn coord_drift(&self) -> f64 {
+        let Joints::Multibody(h) = &self.joints else {
+            return 0.0;
+        };
+        h.iter()
+            .enumerate()
+            .filter_map(|(j, &jh)| {
+                let (mb, id) = self.world.multibody_joints.get(jh)?;
+                let c = mb.link(id)?.joint().coords();
+                let q = Vec3::new(c[3], c[4], c[5]);
+                Some((q - self.relative_rotation(j)).norm())
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// Largest opening (m) of a joint: the distance between the parent's end
+    /// and the child's start (0 up to round-off for multibody joints).
+    pub fn max_joint_gap(&self) -> f64 {
+        (0..self.links.len())
+            .map(|k| (self.joint_point_from_parent(k) - self.joint_point(k)).norm())
+            .fold(0.0, f64::max)
+    }
+
+    /// Joint `k`'s point as the child link has it (m).
+    fn joint_point(&self, k: usize) -> Vec3 {
+        nv(self.link_pose(k).translation)
+    }
+
+    /// Joint `k`'s point as the parent (clamp or link) has it (m).
+    fn joint_point_from_parent(&self, k: usize) -> Vec3 {
+        if k == 0 {
+            (self.clamp_now * nalgebra::Point3::new(self.joint_s[0], 0.0, 0.0)).coords
+        } else {
+            let l = &self.links[k - 1];
+            nv(self.link_pose(k - 1).transform_point(DVec3::new(l.length, 0.0, 0.0)))
+        }
+    }
+
+    /// Centre of mass, velocity, angular velocity and world inertia of link `k`.
+    fn link_state(&self, k: usize) -> (Vec3, Vec3, Vec3, Mat3) {
+        let l = &self.links[k];
+        let rb = &self.world.bodies[l.handle];
+        let pose = rb.position();
+        let x = nv(pose.transform_point(DVec3::new(l.com, 0.0, 0.0)));
+        let r = to_mat(&pose.rotation);
+        let i_local = Mat3::from_diagonal(&Vec3::new(l.inertia[0], l.inertia[1], l.inertia[1]));
+        (x, nv(rb.linvel()), nv(rb.angvel()), r * i_local * r.transpose())
+    }
+
+    /// Velocity of the point `x` (m) of link `k` (m/s).
+    fn velocity_at(&self, k: usize, x: &Vec3) -> Vec3 {
+        let (com, v, w, _) = self.link_state(k);
+        v + w.cross(&(x - com))
+    }
+
+    /// Linear momentum and angular momentum about the clamp point.
+    fn momenta(&self) -> (Vec3, Vec3) {
+        let c = self.clamp_now.translation.vector;
+        let mut p = Vec3::zeros();
+        let mut l = Vec3::zeros();
+        for k in 0..self.links.len() {
+            let (x, v, w, i) = self.link_state(k);
+            let m = self.links[k].mass;
+            p += m * v;
+            l += (x - c).cross(&(m * v)) + i * w;
+        }
+        (p, l)
+    }
+
+    /// External force and torque about the clamp point on the rod: gravity
+    /// (on the links and on the half cell the clamp holds) and the tip loads
+    /// at the current time.
+    fn external_wrench(&self) -> (Vec3, Vec3) {
+        let c = self.clamp_now.translation.vector;
+        let stub = self.stub.0 * self.gravity;
+        let mut f = stub;
+        let mut t =
+            (self.clamp_now * nalgebra::Point3::new(self.stub.1, 0.0, 0.0) - nalgebra::Point3::from(c)).cross(&stub);
+        for k in 0..self.links.len() {
+            let (x, ..) = self.link_state(k);
+            let w = self.links[k].mass * self.gravity;
+            f += w;
+            t += (x - c).cross(&w);
+        }
+        let tip_f = self.body.tip_force_at(self.time);
+        f += tip_f;
+        t += (self.tip() - c).cross(&tip_f) + self.body.tip_torque_at(self.time);
+        (f, t)
+    }
+
+    /// Advance by `dt` (s) to the operator's command `cmd`.
+    pub fn step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<(), SimError> {
+        SimError::check_dt(self.time, dt)?;
+        if cmd.insertion != 0.0 {
+            return Err(SimError::SolverFailed {
+                t: self.time,
+                reason: "the rigid chain does not feed wire through its clamp (insertion)".into(),
+            });
+        }
+        let t1 = self.time + dt;
+        let clamp = cmd.base_pose.unwrap_or(self.clamp) * turn(cmd.rotation);
+        if clamp != self.clamp_now {
+            return Err(SimError::SolverFailed {
+                t: self.time,
+                reason: "the rigid chain's clamp is a fixed body: it cannot follow a moving clamp (rapier 0.36 integrates a multibody on a kinematic root twice per step)".into(),
+            });
+        }
+        // The tip force at the tip point: at the centre of mass plus its
+        // moment about it (from this chain's own centre of mass: rapier's
+        // world one is stale until the body's first step).
+        let n = self.links.len();
+        let (com, ..) = self.link_state(n - 1);
+        let force = self.body.tip_force_at(t1);
+        let torque = (self.tip() - com).cross(&force) + self.body.tip_torque_at(t1);
+        let rb = &mut self.world.bodies[self.links[n - 1].handle];
+        // rapier keeps user forces and torques until reset.
+        rb.reset_forces(false);
+        rb.reset_torques(false);
+        rb.add_force(dv(&force), true);
+        rb.add_torque(dv(&torque), true);
+        self.world.integration_parameters.dt = dt;
+        self.world.step();
+        self.time = t1;
+        let finite = self.links.iter().all(|l| {
+            let rb = &self.world.bodies[l.handle];
+            rb.translation().is_finite() && rb.linvel().is_finite() && rb.angvel().is_finite()
+        });
+        if !finite {
+            return Err(SimError::Diverged {
+                t: t1,
+                reason: "a link's pose or velocity is not finite".into(),
+            });
+        }
+        let (p, l) = self.momenta();
+        let (f, t) = self.external_wrench();
+        self.hand = (f - (p - self.momentum.0) / dt, t - (l - self.momentum.1) / dt);
+        self.momentum = (p, l);
+        Ok(())
+    }
+
+    /// Force and torque (about the clamp point) the chain exerts on the
+    /// clamp over the last step (N, N m).
+    pub fn hand_wrench(&self) -> (Vec3, Vec3) {
+        self.hand
+    }
+
+    /// The chain as a rod: nodes at the clamp, at every joint and at the
+    /// tip; edge 0 is the half cell held by the clamp, edge `k + 1` link `k`.
+    pub fn rod_obs(&self) -> RodObs {
+        let n = self.links.len();
+        let mut arclength = Vec::with_capacity(n + 2);
+        let mut nodes = Vec::with_capacity(n + 2);
+        let mut velocities = Vec::with_capacity(n + 2);
+        let mut frames = Vec::with_capacity(n + 1);
+        let c = self.clamp_now.translation.vector;
+        arclength.push(0.0);
+        nodes.push(c);
+        velocities.push(nv(self.world.bodies[self.base].linvel()));
+        let material = |r: Mat3| {
+            Mat3::from_columns(&[
+                r.column(1).into_owned(),
+                r.column(2).into_owned(),
+                r.column(0).into_owned(),
+            ])
+        };
+        frames.push(material(self.clamp_now.rotation.to_rotation_matrix().into_inner()));
+        for k in 0..n {
+            let rb = &self.world.bodies[self.links[k].handle];
+            let x = self.joint_point(k);
+            arclength.push(self.joint_s[k]);
+            nodes.push(x);
+            velocities.push(self.velocity_at(k, &x));
+            frames.push(material(to_mat(&rb.position().rotation)));
+        }
+        let tip = self.tip();
+        arclength.push(self.body.length);
+        nodes.push(tip);
+        velocities.push(self.velocity_at(n - 1, &tip));
+        let rest = arclength
+            .iter()
+            .map(|&s| (self.clamp * nalgebra::Point3::new(s, 0.0, 0.0)).coords)
+            .collect();
+        let h = self.body.length / n as f64;
+        RodObs {
+            arclength,
+            rest,
+            nodes,
+            velocities,
+            frames,
+            max_stretch: self.max_joint_gap() / h,
+        }
+    }
+
+    /// Kinetic energy of the links, elastic energy of the joint springs on
+    /// the true relative rotations, and the potential of gravity and the
+    /// tip force (the tip torque has none here) (J).
+    pub fn energies(&self) -> EnergyObs {
+        let mut e = EnergyObs::default();
+        for k in 0..self.links.len() {
+            let (x, v, w, i) = self.link_state(k);
+            let m = self.links[k].mass;
+            e.kinetic += 0.5 * m * v.norm_squared() + 0.5 * w.dot(&(i * w));
+            e.external -= m * self.gravity.dot(&x);
+            let q = self.relative_rotation(k);
+            e.elastic += 0.5 * (0..3).map(|a| self.stiffness[k][a] * q[a] * q[a]).sum::<f64>();
+        }
+        e.external -= self.body.tip_force_at(self.time).dot(&self.tip());
+        e
+    }
+}
+
+/// Rotation about the clamp's own axis (local `x`) by `angle` rad.
+fn turn(angle: f64) -> Iso3 {
+    Iso3::rotation(Vec3::new(angle, 0.0, 0.0))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two sections: the mass is the sum of the two cylinders, the centre
+    /// of mass their weighted mean (exact arithmetic up to round-off).
+    #[test]
+    fn piece_mass_splits_at_sections() {
+        let mut body = RodBody::uniform(1.0, 0.01, 1e9, 0.3, 1000.0);
+        let mut tip = body.sections[0].clone();
+        body.sections[0].until = 0.5;
+        tip.density = 3000.0;
+        body.sections.push(tip);
+        let a = std::f64::consts::PI * 1e-4;
+        let (m, com, _) = piece_mass(&body, 0.25, 0.75);
+        let (m1, m2) = (1000.0 * a * 0.25, 3000.0 * a * 0.25);
+        assert!((m - (m1 + m2)).abs() < 1e-12 * m);
+        let want = (m1 * 0.125 + m2 * 0.375) / (m1 + m2);
+        assert!((com - want).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,117 @@
+//! Statics of the rigid chain (multibody joints) against Euler-Bernoulli
+//! closed forms: the deflection under gravity converges at second order in
+//! the link length (the midpoint rule of the bar chain), a uniform twist is
+//! exact, and the clamp reads the rod's weight and the tip torque.
+
+use std::f64::consts::PI;
+use surgbench_core::frames::signed_angle;
+use surgbench_core::{DeviceCommand, RodBody, Vec3};
+use surgbench_multibody::{ChainParams, RigidChain};
+
+/// The default rod scenes' wire: nitinol-like, 0.1 m, radius 0.5 mm.
+fn wire() -> RodBody {
+    RodBody::uniform(0.1, 5e-4, 5e10, 0.3, 6450.0)
+}
+
+/// A critically damped chain of `n` links.
+fn chain(body: &RodBody, gravity: f64, n: usize, rotation: f64) -> RigidChain {
+    let p = ChainParams {
+        links: n,
+        damping_ratio: 1.0,
+        ..Default::default()
+    };
+    RigidChain::new(body, Vec3::new(0.0, 0.0, -gravity), &p, rotation).unwrap()
+}
+
+/// Step `dt` = 1 ms at the clamp's `rotation` until every node and every
+/// frame is still to 1e-12 (m/s, rad/step) or `duration` s have passed.
+fn run(c: &mut RigidChain, duration: f64, rotation: f64) {
+    let cmd = DeviceCommand {
+        rotation,
+        ..Default::default()
+    };
+    let mut frames = c.rod_obs().frames;
+    while c.time() < duration - 1e-12 {
+        c.step(1e-3, &cmd).unwrap();
+        let obs = c.rod_obs();
+        let v = obs.velocities.iter().map(|v| v.norm()).fold(0.0, f64::max);
+        let w = obs
+            .frames
+            .iter()
+            .zip(&frames)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, f64::max);
+        frames = obs.frames;
+        if v < 1e-12 && w < 1e-12 {
+            break;
+        }
+    }
+}
+
+/// Tip deflection under gravity against `q L^4 / (8 EI)` at 10 to 80
+/// links: the error falls by 4 per halving (midpoint rule, O(h^2)).
+/// Measured: -5.0e-3, -1.26e-3, -3.2e-4, -8.3e-5.
+#[test]
+fn gravity_deflection_converges_at_second_order() {
+    let body = wire();
+    let g = 9.81;
+    let s = &body.sections[0];
+    let (ei, q) = (s.youngs_modulus * s.second_moment(), s.density * s.area() * g);
+    let eb = q * body.length.powi(4) / (8.0 * ei);
+    let mut errors = Vec::new();
+    for n in [10, 20, 40, 80] {
+        let mut c = chain(&body, g, n, 0.0);
+        run(&mut c, 1.0, 0.0);
+        errors.push((-c.tip().z - eb) / eb);
+        // The clamp carries the whole weight; its moment is q L^2 / 2 up to
+        // the shortening of the lever arm, O((tip / L)^2) = 6e-6.
+        let (f, t) = c.hand_wrench();
+        let weight = q * body.length;
+        assert!(
+            (f.z + weight).abs() < 1e-9 * weight,
+            "n={n}: hand force {f:?}, weight {weight}"
+        );
+        let moment = q * body.length.powi(2) / 2.0;
+        assert!(
+            (t.y - moment).abs() < 1e-4 * moment,
+            "n={n}: hand torque {t:?}, q L^2/2 = {moment}"
+        );
+    }
+    println!("relative tip errors at 10..80 links: {errors:?}");
+    for w in errors.windows(2) {
+        let order = (w[0] / w[1]).log2();
+        // Midpoint rule: order 2; 1.9 allows the small-deflection closed
+        // form's own O((tip/L)^2) = 6e-6 error at 80 links.
+        assert!((1.9..2.1).contains(&order), "observed order {order} from {errors:?}");
+    }
+    assert!(errors[3].abs() < 1e-4, "80 links: {:e}", errors[3]);
+}
+
+/// A clamp turned by pi/2 and a tip torque: every joint twists by
+/// `T h / (GJ)`, so the tip turns by `pi/2 + T L / (GJ)` exactly (the
+/// midpoint rule is exact for a constant moment); the clamp reads `T`.
+#[test]
+fn uniform_twist_is_exact() {
+    let mut body = wire();
+    let torque = 0.01;
+    body.tip_torque = Vec3::new(torque, 0.0, 0.0);
+    let s = &body.sections[0];
+    let gj = s.shear_modulus() * s.polar_moment();
+    let want = PI / 2.0 + torque * body.length / gj;
+    for n in [10, 40] {
+        let mut c = chain(&body, 0.0, n, PI / 2.0);
+        run(&mut c, 1.0, PI / 2.0);
+        let obs = c.rod_obs();
+        let f = obs.tip_frame();
+        let angle = signed_angle(&Vec3::y(), &f.column(0).into_owned(), &f.column(2).into_owned());
+        let got = if angle < 0.0 { angle + 2.0 * PI } else { angle };
+        // Round-off over n joints and the settle (to 1e-12 rad per step).
+        assert!((got - want).abs() < 1e-9, "n={n}: tip twist {got}, want {want}");
+        assert!((c.tip() - Vec3::new(body.length, 0.0, 0.0)).norm() < 1e-12);
+        let (_, t) = c.hand_wrench();
+        assert!(
+            (t - Vec3::new(torque, 0.0, 0.0)).norm() < 1e-9 * torque,
+            "hand torque {t:?}"
+        );
+    }
+}
