@@ -23,7 +23,7 @@ def test_scenarios_give_parameters_with_units_ranges_and_defaults():
 
 def test_models_give_capabilities_and_settings_by_name():
     models = {m["id"]: m for m in surgbench.models()}
-    assert {"der", "chainmail", "pbd-rod", "pbd-tissue", "fem", "meshless", "needle"} <= models.keys()
+    assert {"der", "chainmail", "pbd-rod", "pbd-tissue", "fem", "meshless", "needle", "multibody"} <= models.keys()
     fem = models["fem"]
     assert fem["family"] == "tissue"
     assert "tissue" in fem["capabilities"]

@@ -78,7 +78,7 @@ fn undamped_energy_decays_as_backward_euler() {
 }
 
 /// Two runs of the same chain, gravity and a ramped tip force on: every
-/// number observed is bit for bit the same (rapier's enhanced determinism).
+/// number observed is bit for bit the same (rapier single-threaded, same binary).
 #[test]
 fn reruns_are_bit_identical() {
     let (mut body, _) = vibrating_wire(1e-3);
