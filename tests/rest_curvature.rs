@@ -43,6 +43,14 @@ fn pre_curved_rods_rest_on_the_same_arc() {
                 // Delta; noted on the chain-mail issue).
                 tol += (x * x + lat * lat).sqrt() * k * (l / n as f64) / 2.0;
             }
+            if f.id() == "multibody" {
+                // The bar chain's interior links follow the arc's tangent at
+                // their midpoints (the midpoint rule above), but its two half
+                // cells, the clamp's stub and the tip link, hold the tangent
+                // of one end: each strays from the arc by at most
+                // int_0^(Delta/2) k s ds = k Delta^2 / 8.
+                tol += k * (l / n as f64).powi(2) / 4.0;
+            }
             let err = ((tip.x - expect[0]).powi(2) + (tip.y - expect[1]).powi(2) + (tip.z - expect[2]).powi(2)).sqrt();
             assert!(
                 err <= tol,

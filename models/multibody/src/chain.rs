@@ -120,6 +120,10 @@ pub struct RigidChain {
     joint_s: Vec<f64>,
     /// Spring constants of every joint: twist, bend, bend (N m/rad).
     stiffness: Vec<[f64; 3]>,
+    /// Rest rotation vector of every joint in its parent's frame (rad).
+    rest: Vec<Vec3>,
+    /// Node positions as built, on the rest shape (m).
+    rest_nodes: Vec<Vec3>,
     body: RodBody,
     /// Mass (kg) and centre of mass (m from the clamp) of the half cell the
     /// clamp holds: its weight reaches the hand too.
@@ -187,8 +191,13 @@ impl RigidChain {
     /// advances the multibody's joint positions by twice its joint
     /// velocities each step (measured: a one-link chain oscillated sqrt(2)
     /// too fast with twice the set joint rate; with a fixed root it keeps its
-    /// frequency and energy), so this version does not move its clamp:
-    /// [`RigidChain::step`] refuses a command that would.
+    /// frequency and energy). The cause, read in its source
+    /// (`dynamics/solver/staged_island_solver/helpers.rs`): the solver lists
+    /// a multibody once per island body that is its link 0, or its link 1
+    /// when the root is not dynamic; a kinematic root is an island body, so
+    /// the multibody is listed, and integrated, twice. This version therefore
+    /// does not move its clamp: [`RigidChain::step`] refuses a command that
+    /// would.
     pub fn new(body: &RodBody, gravity: Vec3, p: &ChainParams, rotation: f64) -> Result<Self, String> {
         body.validate()?;
         if p.links == 0 {
@@ -207,11 +216,28 @@ impl RigidChain {
         let clamp = body.base;
         let clamp_now = clamp * turn(rotation);
         let base = world.insert_body(RigidBodyBuilder::fixed().pose(to_pose(&clamp_now)));
+        // Rest rotation of every joint in its parent's frame (x = t, y = d1,
+        // z = d2): the rest Darboux vector (0, kappa_1, kappa_2) integrated
+        // over the joint's cell, so a rod with rest curvature is built on its
+        // rest shape.
+        let rest: Vec<Vec3> = joint_s
+            .iter()
+            .map(|&s| {
+                let k = body.section_at(s).rest_curvature;
+                Vec3::new(0.0, k[0] * h, k[1] * h)
+            })
+            .collect();
         let mut links = Vec::with_capacity(n);
+        let mut pose = clamp_now;
         for (k, &s) in joint_s.iter().enumerate() {
             let end = if k + 1 < n { joint_s[k + 1] } else { body.length };
             let (mass, com, inertia) = piece_mass(body, s, end);
-            let pose = clamp_now * Iso3::translation(s, 0.0, 0.0);
+            let from = if k == 0 {
+                s
+            } else {
+                links.last().map_or(0.0, |l: &Link| l.length)
+            };
+            pose = pose * Iso3::translation(from, 0.0, 0.0) * Iso3::rotation(rest[k]);
             let mprops = MassProperties::new(
                 DVec3::new(com, 0.0, 0.0),
                 mass,
@@ -261,8 +287,11 @@ impl RigidChain {
                     let (mb, id) = world.multibody_joints.get_mut(h).ok_or("joint lost")?;
                     let link = mb.link_mut(id).ok_or("link lost")?;
                     for (a, &kk) in stiffness[k].iter().enumerate() {
-                        link.joint.set_spring(3 + a, kk, 0.0);
+                        link.joint.set_spring(3 + a, kk, rest[k][a]);
                     }
+                    // Start the joint at its rest rotation (coordinates and
+                    // rotation both; rapier's joints start at zero).
+                    link.joint.apply_displacement(rest[k].as_slice());
                     handles.push(h);
                 }
                 // Replace rapier's default joint damping (0.1 N m s/rad per
@@ -271,6 +300,7 @@ impl RigidChain {
                 // from the base body) when the forward kinematics runs.
                 let (mb, _) = world.multibody_joints.get_mut(handles[0]).ok_or("joint lost")?;
                 mb.forward_kinematics(&world.bodies, true);
+                mb.update_rigid_bodies(&mut world.bodies, false);
                 if mb.ndofs() != 3 * n {
                     return Err(format!("the multibody has {} DOFs, expected {}", mb.ndofs(), 3 * n));
                 }
@@ -299,10 +329,12 @@ impl RigidChain {
                         .enumerate()
                     {
                         let kk = stiffness[k][a];
-                        joint =
-                            joint
-                                .motor_model(axis, MotorModel::ForceBased)
-                                .motor_position(axis, 0.0, kk, beta * kk);
+                        joint = joint.motor_model(axis, MotorModel::ForceBased).motor_position(
+                            axis,
+                            rest[k][a],
+                            kk,
+                            beta * kk,
+                        );
                     }
                     world.insert_impulse_joint(parent(k), links[k].handle, joint);
                 }
@@ -318,6 +350,8 @@ impl RigidChain {
             joints,
             joint_s,
             stiffness,
+            rest,
+            rest_nodes: Vec::new(),
             body: body.clone(),
             stub: {
                 let (m, com, _) = piece_mass(body, 0.0, 0.5 * h);
@@ -331,6 +365,7 @@ impl RigidChain {
         if let Some(v) = &body.initial_velocity {
             chain.set_initial_velocity(v);
         }
+        chain.rest_nodes = chain.rod_obs().nodes;
         chain.momentum = chain.momenta();
         chain.hand = chain.external_wrench();
         Ok(chain)
@@ -630,10 +665,7 @@ impl RigidChain {
         arclength.push(self.body.length);
         nodes.push(tip);
         velocities.push(self.velocity_at(n - 1, &tip));
-        let rest = arclength
-            .iter()
-            .map(|&s| (self.clamp * nalgebra::Point3::new(s, 0.0, 0.0)).coords)
-            .collect();
+        let rest = self.rest_nodes.clone();
         let h = self.body.length / n as f64;
         RodObs {
             arclength,
@@ -655,7 +687,7 @@ impl RigidChain {
             let m = self.links[k].mass;
             e.kinetic += 0.5 * m * v.norm_squared() + 0.5 * w.dot(&(i * w));
             e.external -= m * self.gravity.dot(&x);
-            let q = self.relative_rotation(k);
+            let q = self.relative_rotation(k) - self.rest[k];
             e.elastic += 0.5 * (0..3).map(|a| self.stiffness[k][a] * q[a] * q[a]).sum::<f64>();
         }
         e.external -= self.body.tip_force_at(self.time).dot(&self.tip());

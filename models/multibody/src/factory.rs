@@ -9,14 +9,14 @@ use surgbench_core::{
 
 /// What the chain simulates in this version. Not (yet): insertion through
 /// the clamp, vessel contact and friction, blood-flow drag, a moving or
-/// deforming vessel, rest curvature: scenes that need them are refused
-/// with the list.
+/// deforming vessel: scenes that need them are refused with the list.
 const CAPABILITIES: &[Capability] = &[
     Capability::Rod,
     Capability::Twist,
     Capability::TipForce,
     Capability::LoadRamp,
     Capability::VaryingProperties,
+    Capability::RestCurvature,
     Capability::InitialVelocity,
     Capability::HapticForce,
 ];

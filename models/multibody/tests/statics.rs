@@ -115,3 +115,30 @@ fn uniform_twist_is_exact() {
         );
     }
 }
+
+/// A pre-curved chain (rest curvature (4, 10) 1/m, a helix-free bend out of
+/// both planes) with no load stays where it was built: its joint springs
+/// are at rest there, so 200 steps move no node by more than round-off.
+#[test]
+fn a_pre_curved_chain_without_load_stays_on_its_rest_shape() {
+    let mut body = wire();
+    body.sections[0].rest_curvature = [4.0, 10.0];
+    let mut c = chain(&body, 0.0, 20, 0.3);
+    let start = c.rod_obs();
+    assert_eq!(start.rest, start.nodes, "built on the rest shape");
+    run(&mut c, 0.2, 0.3);
+    let moved = c
+        .rod_obs()
+        .nodes
+        .iter()
+        .zip(&start.nodes)
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, f64::max);
+    // Round-off of 20 joint rotations on a 0.1 m rod.
+    assert!(moved < 1e-13, "a node moved {moved:e} m");
+    assert!(
+        c.energies().elastic < 1e-20,
+        "elastic energy {:e} J",
+        c.energies().elastic
+    );
+}
