@@ -1,5 +1,5 @@
 //! [`RigidChain`]: a rod as rapier3d rigid links joined by spherical joints
-//! with bending and twisting springs, clamped to a fixed base.
+//! with bending and twisting springs, held by a clamp the operator turns.
 //!
 //! # Discretization (the Hencky bar chain with joints at cell centres)
 //!
@@ -38,7 +38,9 @@
 //!   [`RigidChain::max_joint_gap`].
 //!
 //! Gravity acts on every link; a tip force acts on the tip point of the last
-//! link and a tip torque on the last link. The hand force is the force the
+//! link and a tip torque on the last link. The operator turns the clamp
+//! about its axis (a kinematic DOF); pushing wire through it is not modelled
+//! yet. The hand force is the force the
 //! chain exerts on the clamp: the external forces minus the rate of change
 //! of the chain's momentum (Newton-Euler on the whole chain). SI units.
 
@@ -105,14 +107,17 @@ enum Joints {
     Impulse,
 }
 
-/// A rod as a chain of rapier rigid links clamped to a fixed base.
+/// A rod as a chain of rapier rigid links held by a clamp the operator turns.
 pub struct RigidChain {
     world: PhysicsWorld,
-    base: RigidBodyHandle,
+    /// The clamp's half cell `[0, h/2]`: a body turned about the clamp's
+    /// axis by the operator (a kinematic joint DOF of the multibody, whose
+    /// root is fixed at the scene's clamp; a kinematic body with impulse
+    /// joints).
+    carriage: Link,
     /// The scene's clamp pose (before the operator's rotation).
     clamp: Iso3,
-    /// The clamp pose the chain was built at (the scene's, turned by the
-    /// operator's rotation at `t = 0`); fixed for the run.
+    /// The clamp pose now: the scene's, turned by the operator's rotation.
     clamp_now: Iso3,
     links: Vec<Link>,
     joints: Joints,
@@ -125,9 +130,6 @@ pub struct RigidChain {
     /// Node positions as built, on the rest shape (m).
     rest_nodes: Vec<Vec3>,
     body: RodBody,
-    /// Mass (kg) and centre of mass (m from the clamp) of the half cell the
-    /// clamp holds: its weight reaches the hand too.
-    stub: (f64, f64),
     gravity: Vec3,
     time: f64,
     /// Linear momentum and angular momentum about the clamp point after the
@@ -187,17 +189,17 @@ impl RigidChain {
     /// Build the chain for `body` (clamp pose `body.base` turned by
     /// `rotation` rad about its axis) under `gravity` (m/s^2).
     ///
-    /// The clamp is a fixed rapier body. With a kinematic one, rapier 0.36.1
-    /// advances the multibody's joint positions by twice its joint
-    /// velocities each step (measured: a one-link chain oscillated sqrt(2)
-    /// too fast with twice the set joint rate; with a fixed root it keeps its
-    /// frequency and energy). The cause, read in its source
-    /// (`dynamics/solver/staged_island_solver/helpers.rs`): the solver lists
-    /// a multibody once per island body that is its link 0, or its link 1
-    /// when the root is not dynamic; a kinematic root is an island body, so
-    /// the multibody is listed, and integrated, twice. This version therefore
-    /// does not move its clamp: [`RigidChain::step`] refuses a command that
-    /// would.
+    /// The multibody's root is a fixed body at the scene's clamp; the
+    /// operator turns the clamp's half cell through a kinematic joint DOF
+    /// (its rate set each step so that it lands on the command). A kinematic
+    /// root body would be simpler, but rapier 0.36.1 then advances the
+    /// multibody's joints by twice their velocities each step (measured: a
+    /// one-link chain oscillated sqrt(2) too fast with twice the set joint
+    /// rate; with a fixed root it keeps its frequency and energy). The cause,
+    /// read in its source (`dynamics/solver/staged_island_solver/helpers.rs`):
+    /// the solver lists a multibody once per island body that is its link 0,
+    /// or its link 1 when the root is not dynamic; a kinematic root is an
+    /// island body, so the multibody is listed, and integrated, twice.
     pub fn new(body: &RodBody, gravity: Vec3, p: &ChainParams, rotation: f64) -> Result<Self, String> {
         body.validate()?;
         if p.links == 0 {
@@ -215,7 +217,28 @@ impl RigidChain {
         world.integration_parameters.num_internal_pgs_iterations = p.iterations.max(1);
         let clamp = body.base;
         let clamp_now = clamp * turn(rotation);
-        let base = world.insert_body(RigidBodyBuilder::fixed().pose(to_pose(&clamp_now)));
+        let root = world.insert_body(RigidBodyBuilder::fixed().pose(to_pose(&clamp)));
+        let (mass, com, inertia) = piece_mass(body, 0.0, 0.5 * h);
+        let carriage_body = match p.joint {
+            JointKind::Multibody => RigidBodyBuilder::dynamic(),
+            JointKind::Impulse => RigidBodyBuilder::kinematic_position_based(),
+        };
+        let carriage = Link {
+            handle: world.insert_body(
+                carriage_body
+                    .pose(to_pose(&clamp_now))
+                    .additional_mass_properties(MassProperties::new(
+                        DVec3::new(com, 0.0, 0.0),
+                        mass,
+                        DVec3::new(inertia[0], inertia[1], inertia[1]),
+                    ))
+                    .can_sleep(false),
+            ),
+            length: 0.5 * h,
+            mass,
+            com,
+            inertia,
+        };
         // Rest rotation of every joint in its parent's frame (x = t, y = d1,
         // z = d2): the rest Darboux vector (0, kappa_1, kappa_2) integrated
         // over the joint's cell, so a rod with rest curvature is built on its
@@ -272,9 +295,24 @@ impl RigidChain {
         let omega1 = first_bending_frequency(body.section_at(0.0), body.length);
         let beta = 2.0 * p.damping_ratio / omega1;
         let anchor = |k: usize| if k == 0 { joint_s[0] } else { links[k - 1].length };
-        let parent = |k: usize| if k == 0 { base } else { links[k - 1].handle };
+        let parent = |k: usize| if k == 0 { carriage.handle } else { links[k - 1].handle };
         let joints = match p.joint {
             JointKind::Multibody => {
+                // The clamp's turn (and, later, its push) as kinematic DOFs
+                // of the multibody: their velocities are set, not solved for.
+                let slide_turn = GenericJointBuilder::new(
+                    JointAxesMask::LIN_Y | JointAxesMask::LIN_Z | JointAxesMask::ANG_Y | JointAxesMask::ANG_Z,
+                )
+                .contacts_enabled(false);
+                let ch = world
+                    .multibody_joints
+                    .insert_kinematic(root, carriage.handle, slide_turn, true)
+                    .ok_or("rapier refused the clamp's joint")?;
+                let (mb, id) = world.multibody_joints.get_mut(ch).ok_or("joint lost")?;
+                mb.link_mut(id)
+                    .ok_or("link lost")?
+                    .joint
+                    .apply_displacement(&[0.0, rotation]);
                 let mut handles = Vec::with_capacity(n);
                 for k in 0..n {
                     let joint = SphericalJointBuilder::new()
@@ -301,8 +339,8 @@ impl RigidChain {
                 let (mb, _) = world.multibody_joints.get_mut(handles[0]).ok_or("joint lost")?;
                 mb.forward_kinematics(&world.bodies, true);
                 mb.update_rigid_bodies(&mut world.bodies, false);
-                if mb.ndofs() != 3 * n {
-                    return Err(format!("the multibody has {} DOFs, expected {}", mb.ndofs(), 3 * n));
+                if mb.ndofs() != 3 * n + 2 {
+                    return Err(format!("the multibody has {} DOFs, expected {}", mb.ndofs(), 3 * n + 2));
                 }
                 let mut ids = Vec::with_capacity(n);
                 for &h in &handles {
@@ -343,7 +381,7 @@ impl RigidChain {
         };
         let mut chain = Self {
             world,
-            base,
+            carriage,
             clamp,
             clamp_now,
             links,
@@ -353,10 +391,6 @@ impl RigidChain {
             rest,
             rest_nodes: Vec::new(),
             body: body.clone(),
-            stub: {
-                let (m, com, _) = piece_mass(body, 0.0, 0.5 * h);
-                (m, com)
-            },
             gravity,
             time: 0.0,
             momentum: (Vec3::zeros(), Vec3::zeros()),
@@ -397,7 +431,7 @@ impl RigidChain {
                     .iter()
                     .filter_map(|&jh| self.world.multibody_joints.get(jh).map(|x| x.1))
                     .collect();
-                let base_rot = self.world.bodies[self.base].position().rotation;
+                let base_rot = self.clamp_now_rotation();
                 let Some((mb, _)) = self.world.multibody_joints.get_mut(h[0]) else {
                     return;
                 };
@@ -480,7 +514,7 @@ impl RigidChain {
     }
 
     fn clamp_now_rotation(&self) -> DQuat {
-        self.world.bodies[self.base].position().rotation
+        self.world.bodies[self.carriage.handle].position().rotation
     }
 
     /// Largest difference (rad) between rapier's joint coordinates (what its
@@ -527,7 +561,11 @@ impl RigidChain {
 
     /// Centre of mass, velocity, angular velocity and world inertia of link `k`.
     fn link_state(&self, k: usize) -> (Vec3, Vec3, Vec3, Mat3) {
-        let l = &self.links[k];
+        self.body_state(&self.links[k])
+    }
+
+    /// Centre of mass, velocity, angular velocity and world inertia of `l`.
+    fn body_state(&self, l: &Link) -> (Vec3, Vec3, Vec3, Mat3) {
         let rb = &self.world.bodies[l.handle];
         let pose = rb.position();
         let x = nv(pose.transform_point(DVec3::new(l.com, 0.0, 0.0)));
@@ -538,7 +576,12 @@ impl RigidChain {
 
     /// Velocity of the point `x` (m) of link `k` (m/s).
     fn velocity_at(&self, k: usize, x: &Vec3) -> Vec3 {
-        let (com, v, w, _) = self.link_state(k);
+        self.body_velocity_at(&self.links[k], x)
+    }
+
+    /// Velocity of the point `x` (m) of the body `l` (m/s).
+    fn body_velocity_at(&self, l: &Link, x: &Vec3) -> Vec3 {
+        let (com, v, w, _) = self.body_state(l);
         v + w.cross(&(x - com))
     }
 
@@ -547,11 +590,10 @@ impl RigidChain {
         let c = self.clamp_now.translation.vector;
         let mut p = Vec3::zeros();
         let mut l = Vec3::zeros();
-        for k in 0..self.links.len() {
-            let (x, v, w, i) = self.link_state(k);
-            let m = self.links[k].mass;
-            p += m * v;
-            l += (x - c).cross(&(m * v)) + i * w;
+        for b in std::iter::once(&self.carriage).chain(&self.links) {
+            let (x, v, w, i) = self.body_state(b);
+            p += b.mass * v;
+            l += (x - c).cross(&(b.mass * v)) + i * w;
         }
         (p, l)
     }
@@ -561,13 +603,11 @@ impl RigidChain {
     /// at the current time.
     fn external_wrench(&self) -> (Vec3, Vec3) {
         let c = self.clamp_now.translation.vector;
-        let stub = self.stub.0 * self.gravity;
-        let mut f = stub;
-        let mut t =
-            (self.clamp_now * nalgebra::Point3::new(self.stub.1, 0.0, 0.0) - nalgebra::Point3::from(c)).cross(&stub);
-        for k in 0..self.links.len() {
-            let (x, ..) = self.link_state(k);
-            let w = self.links[k].mass * self.gravity;
+        let mut f = Vec3::zeros();
+        let mut t = Vec3::zeros();
+        for b in std::iter::once(&self.carriage).chain(&self.links) {
+            let (x, ..) = self.body_state(b);
+            let w = b.mass * self.gravity;
             f += w;
             t += (x - c).cross(&w);
         }
@@ -587,12 +627,33 @@ impl RigidChain {
             });
         }
         let t1 = self.time + dt;
-        let clamp = cmd.base_pose.unwrap_or(self.clamp) * turn(cmd.rotation);
-        if clamp != self.clamp_now {
+        if cmd.base_pose.is_some_and(|p| p != self.clamp) {
             return Err(SimError::SolverFailed {
                 t: self.time,
-                reason: "the rigid chain's clamp is a fixed body: it cannot follow a moving clamp (rapier 0.36 integrates a multibody on a kinematic root twice per step)".into(),
+                reason: "the rigid chain's clamp turns about its axis but does not move (a moving base pose)".into(),
             });
+        }
+        self.clamp_now = self.clamp * turn(cmd.rotation);
+        match &self.joints {
+            Joints::Multibody(h) => {
+                // The turn's rate that lands the kinematic DOF on the command
+                // at the end of the step (DOFs: slide, turn).
+                let Some((mb, id)) = self.world.multibody_joints.get_mut(h[0]) else {
+                    return Err(SimError::SolverFailed {
+                        t: self.time,
+                        reason: "rapier lost the chain's multibody".into(),
+                    });
+                };
+                let _ = id;
+                let turned = mb.link(1).map_or(0.0, |l| l.joint().coords()[3]);
+                let mut gv = mb.generalized_velocity_mut();
+                gv[0] = 0.0;
+                gv[1] = (cmd.rotation - turned) / dt;
+            }
+            Joints::Impulse => {
+                let pose = to_pose(&self.clamp_now);
+                self.world.bodies[self.carriage.handle].set_next_kinematic_position(pose);
+            }
         }
         // The tip force at the tip point: at the centre of mass plus its
         // moment about it (from this chain's own centre of mass: rapier's
@@ -644,7 +705,7 @@ impl RigidChain {
         let c = self.clamp_now.translation.vector;
         arclength.push(0.0);
         nodes.push(c);
-        velocities.push(nv(self.world.bodies[self.base].linvel()));
+        velocities.push(self.body_velocity_at(&self.carriage, &c));
         let material = |r: Mat3| {
             Mat3::from_columns(&[
                 r.column(1).into_owned(),

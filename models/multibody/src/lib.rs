@@ -3,9 +3,9 @@
 //! What a simulator builder gets from a physics engine without writing a
 //! rod solver: the rod as a chain of rigid links on rapier3d, joined by
 //! spherical joints whose springs carry the rod's bending (`EI / h`) and
-//! twisting (`GJ / h`) stiffness, the base a kinematic body driven by the
-//! operator. CathSim builds its guidewire this way from MuJoCo capsules and
-//! joints; here it runs on the same scenes as the dedicated rod models.
+//! twisting (`GJ / h`) stiffness, the clamp turned by the operator.
+//! CathSim builds its guidewire this way from MuJoCo capsules and joints;
+//! here it runs on the same scenes as the dedicated rod models.
 //!
 //! * [`RigidChain`]: the chain as a library object (build from a
 //!   [`surgbench_core::RodBody`], step, observe); its module documents the
