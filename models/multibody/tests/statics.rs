@@ -13,6 +13,25 @@ fn wire() -> RodBody {
     RodBody::uniform(0.1, 5e-4, 5e10, 0.3, 6450.0)
 }
 
+/// The wire with a dead axial tip torque of 0.01 N m, and the tip twist
+/// `pi/2 + T L / (GJ)` a clamp turned by pi/2 gives it (rad).
+fn twisted_wire() -> (RodBody, f64, f64) {
+    let mut body = wire();
+    let torque = 0.01;
+    body.tip_torque = Vec3::new(torque, 0.0, 0.0);
+    let s = &body.sections[0];
+    let want = PI / 2.0 + torque * body.length / (s.shear_modulus() * s.polar_moment());
+    (body, torque, want)
+}
+
+/// Twist of the tip's material frame from the unturned clamp's `d1 = +y`
+/// about the rod axis, in [0, 2 pi) (rad).
+fn tip_twist(c: &RigidChain) -> f64 {
+    let f = c.rod_obs().tip_frame();
+    let angle = signed_angle(&Vec3::y(), &f.column(0).into_owned(), &f.column(2).into_owned());
+    if angle < 0.0 { angle + 2.0 * PI } else { angle }
+}
+
 /// A critically damped chain of `n` links.
 fn chain(body: &RodBody, gravity: f64, n: usize, rotation: f64) -> RigidChain {
     let p = ChainParams {
@@ -92,19 +111,11 @@ fn gravity_deflection_converges_at_second_order() {
 /// midpoint rule is exact for a constant moment); the clamp reads `T`.
 #[test]
 fn uniform_twist_is_exact() {
-    let mut body = wire();
-    let torque = 0.01;
-    body.tip_torque = Vec3::new(torque, 0.0, 0.0);
-    let s = &body.sections[0];
-    let gj = s.shear_modulus() * s.polar_moment();
-    let want = PI / 2.0 + torque * body.length / gj;
+    let (body, torque, want) = twisted_wire();
     for n in [10, 40] {
         let mut c = chain(&body, 0.0, n, PI / 2.0);
         run(&mut c, 1.0, PI / 2.0);
-        let obs = c.rod_obs();
-        let f = obs.tip_frame();
-        let angle = signed_angle(&Vec3::y(), &f.column(0).into_owned(), &f.column(2).into_owned());
-        let got = if angle < 0.0 { angle + 2.0 * PI } else { angle };
+        let got = tip_twist(&c);
         // Round-off over n joints and the settle (to 1e-12 rad per step).
         assert!((got - want).abs() < 1e-9, "n={n}: tip twist {got}, want {want}");
         assert!((c.tip() - Vec3::new(body.length, 0.0, 0.0)).norm() < 1e-12);
@@ -149,11 +160,7 @@ fn a_pre_curved_chain_without_load_stays_on_its_rest_shape() {
 /// tolerance), and the hand carries the torque.
 #[test]
 fn a_clamp_turned_over_time_ends_as_one_built_turned() {
-    let mut body = wire();
-    let torque = 0.01;
-    body.tip_torque = Vec3::new(torque, 0.0, 0.0);
-    let s = &body.sections[0];
-    let want = PI / 2.0 + torque * body.length / (s.shear_modulus() * s.polar_moment());
+    let (body, torque, want) = twisted_wire();
     let mut c = chain(&body, 0.0, 10, 0.0);
     let mut t = 0.0;
     while t < 0.1 - 1e-12 {
@@ -165,9 +172,7 @@ fn a_clamp_turned_over_time_ends_as_one_built_turned() {
         c.step(1e-3, &cmd).unwrap();
     }
     run(&mut c, 1.0, PI / 2.0);
-    let f = c.rod_obs().tip_frame();
-    let angle = signed_angle(&Vec3::y(), &f.column(0).into_owned(), &f.column(2).into_owned());
-    let got = if angle < 0.0 { angle + 2.0 * PI } else { angle };
+    let got = tip_twist(&c);
     // Settled to 1e-12 rad per step, as in uniform_twist_is_exact.
     assert!((got - want).abs() < 1e-9, "tip twist {got}, want {want}");
     let (_, hand) = c.hand_wrench();
