@@ -21,11 +21,12 @@
 //!
 //! # What rapier does with it
 //!
-//! - `joint = multibody`: rapier's reduced-coordinate multibody (Featherstone
-//!   articulated chain, dense generalized mass matrix solved by LU each
-//!   step). The springs are rapier's implicit joint springs: the generalized
-//!   force `-k (q - q_rest)` integrated by backward Euler, so a spring never
-//!   makes the step unstable but takes `1 - exp(-pi omega dt)` of a mode's
+//! - `joint = multibody`: rapier's reduced-coordinate multibody (the dense
+//!   generalized mass matrix assembled and LU-factorized every substep:
+//!   `O(n^3)` in the link count). The springs are rapier's implicit joint
+//!   springs: the generalized force `-k (q - q_rest)` integrated by backward
+//!   Euler at the substep `dt / substeps`, so a spring never makes the step
+//!   unstable but takes `1 - exp(-pi omega dt / substeps)` of a mode's
 //!   amplitude per period (the same as any backward-Euler model). For a
 //!   spherical joint rapier's `q` is the time integral of the joint's
 //!   angular velocity, which is the rotation vector only while the joint
@@ -40,9 +41,10 @@
 //! Gravity acts on every link; a tip force acts on the tip point of the last
 //! link and a tip torque on the last link. The operator turns the clamp
 //! about its axis (a kinematic DOF); pushing wire through it is not modelled
-//! yet. The hand force is the force the
-//! chain exerts on the clamp: the external forces minus the rate of change
-//! of the chain's momentum (Newton-Euler on the whole chain). SI units.
+//! yet. The hand force is the force the rod exerts on the clamp: the
+//! external forces minus the rate of change of the rod's momentum
+//! (Newton-Euler on the whole rod, the clamp's half cell included). SI
+//! units.
 
 use rapier3d_f64::glamx::{DQuat, DVec3};
 use rapier3d_f64::prelude::*;
@@ -637,14 +639,14 @@ impl RigidChain {
         match &self.joints {
             Joints::Multibody(h) => {
                 // The turn's rate that lands the kinematic DOF on the command
-                // at the end of the step (DOFs: slide, turn).
-                let Some((mb, id)) = self.world.multibody_joints.get_mut(h[0]) else {
+                // at the end of the step. The clamp's half cell is link 1
+                // (after the fixed root), its DOFs the first two: slide, turn.
+                let Some((mb, _)) = self.world.multibody_joints.get_mut(h[0]) else {
                     return Err(SimError::SolverFailed {
                         t: self.time,
                         reason: "rapier lost the chain's multibody".into(),
                     });
                 };
-                let _ = id;
                 let turned = mb.link(1).map_or(0.0, |l| l.joint().coords()[3]);
                 let mut gv = mb.generalized_velocity_mut();
                 gv[0] = 0.0;

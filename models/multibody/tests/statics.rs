@@ -32,11 +32,13 @@ fn tip_twist(c: &RigidChain) -> f64 {
     if angle < 0.0 { angle + 2.0 * PI } else { angle }
 }
 
-/// A critically damped chain of `n` links.
+/// A critically damped chain of `n` links at one substep (the model's
+/// static defaults).
 fn chain(body: &RodBody, gravity: f64, n: usize, rotation: f64) -> RigidChain {
     let p = ChainParams {
         links: n,
         damping_ratio: 1.0,
+        substeps: 1,
         ..Default::default()
     };
     RigidChain::new(body, Vec3::new(0.0, 0.0, -gravity), &p, rotation).unwrap()
