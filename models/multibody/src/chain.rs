@@ -104,7 +104,12 @@ struct Link {
 /// The joints, by kind.
 #[derive(Debug, Clone)]
 enum Joints {
-    Multibody(Vec<MultibodyJointHandle>),
+    /// Reduced coordinates: every joint's handle and the offset of its three
+    /// DOFs in the multibody's generalized vectors (fixed once built).
+    Multibody {
+        handles: Vec<MultibodyJointHandle>,
+        offsets: Vec<usize>,
+    },
     /// Impulse joints (the world holds them; nothing to read back).
     Impulse,
 }
@@ -344,19 +349,18 @@ impl RigidChain {
                 if mb.ndofs() != 3 * n + 2 {
                     return Err(format!("the multibody has {} DOFs, expected {}", mb.ndofs(), 3 * n + 2));
                 }
-                let mut ids = Vec::with_capacity(n);
+                let mut offsets = Vec::with_capacity(n);
                 for &h in &handles {
-                    ids.push(world.multibody_joints.get(h).ok_or("joint lost")?.1);
+                    let (mb, id) = world.multibody_joints.get(h).ok_or("joint lost")?;
+                    offsets.push((0..id).filter_map(|i| mb.link(i)).map(|l| l.joint().ndofs()).sum());
                 }
                 let (mb, _) = world.multibody_joints.get_mut(handles[0]).ok_or("joint lost")?;
-                let ndofs: Vec<usize> = mb.links().map(|l| l.joint().ndofs()).collect();
-                for (k, &id) in ids.iter().enumerate() {
-                    let offset: usize = ndofs[..id].iter().sum();
+                for (k, &offset) in offsets.iter().enumerate() {
                     for a in 0..3 {
                         mb.damping_mut()[offset + a] = beta * stiffness[k][a];
                     }
                 }
-                Joints::Multibody(handles)
+                Joints::Multibody { handles, offsets }
             }
             JointKind::Impulse => {
                 for k in 0..n {
@@ -422,30 +426,24 @@ impl RigidChain {
                     rb.set_angvel(dv(&ang), true);
                 }
             }
-            Joints::Multibody(h) => {
+            Joints::Multibody { handles, offsets } => {
                 let omega: Vec<Vec3> = self.links.iter().enumerate().map(|(k, l)| v.at(mid(k, l)).1).collect();
                 let rot: Vec<DQuat> = self
                     .links
                     .iter()
                     .map(|l| self.world.bodies[l.handle].position().rotation)
                     .collect();
-                let ids: Vec<usize> = h
-                    .iter()
-                    .filter_map(|&jh| self.world.multibody_joints.get(jh).map(|x| x.1))
-                    .collect();
                 let base_rot = self.clamp_now_rotation();
-                let Some((mb, _)) = self.world.multibody_joints.get_mut(h[0]) else {
+                let Some((mb, _)) = self.world.multibody_joints.get_mut(handles[0]) else {
                     return;
                 };
-                let ndofs: Vec<usize> = mb.links().map(|l| l.joint().ndofs()).collect();
-                for (k, &id) in ids.iter().enumerate() {
+                for (k, &offset) in offsets.iter().enumerate() {
                     let (parent_rot, parent_omega) = if k == 0 {
                         (base_rot, Vec3::zeros())
                     } else {
                         (rot[k - 1], omega[k - 1])
                     };
                     let rate = parent_rot.inverse().mul_vec3(dv(&(omega[k] - parent_omega)));
-                    let offset: usize = ndofs[..id].iter().sum();
                     let mut gv = mb.generalized_velocity_mut();
                     for a in 0..3 {
                         gv[offset + a] = rate[a];
@@ -524,10 +522,11 @@ impl RigidChain {
     /// relative rotation vector, over the joints; 0 for impulse joints,
     /// whose motors read the relative rotation itself.
     pub fn coord_drift(&self) -> f64 {
-        let Joints::Multibody(h) = &self.joints else {
+        let Joints::Multibody { handles, .. } = &self.joints else {
             return 0.0;
         };
-        h.iter()
+        handles
+            .iter()
             .enumerate()
             .filter_map(|(j, &jh)| {
                 let (mb, id) = self.world.multibody_joints.get(jh)?;
@@ -637,11 +636,11 @@ impl RigidChain {
         }
         self.clamp_now = self.clamp * turn(cmd.rotation);
         match &self.joints {
-            Joints::Multibody(h) => {
+            Joints::Multibody { handles, .. } => {
                 // The turn's rate that lands the kinematic DOF on the command
                 // at the end of the step. The clamp's half cell is link 1
                 // (after the fixed root), its DOFs the first two: slide, turn.
-                let Some((mb, _)) = self.world.multibody_joints.get_mut(h[0]) else {
+                let Some((mb, _)) = self.world.multibody_joints.get_mut(handles[0]) else {
                     return Err(SimError::SolverFailed {
                         t: self.time,
                         reason: "rapier lost the chain's multibody".into(),
