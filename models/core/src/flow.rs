@@ -43,6 +43,15 @@ pub const DRAG_NORMAL: f64 = 1.2;
 /// ch. 2; the value used for cables). An approximation.
 pub const DRAG_TANGENTIAL: f64 = 0.02;
 
+/// Drag per unit length (N/m) on a rod of diameter `d` (m) with unit
+/// tangent `t`, in a flow moving at `u` (m/s) relative to it: the law of
+/// the module docs, `rho/2 d (C_n |u_n| u_n + pi C_t |u_t| u_t)`.
+pub fn drag_per_length(u: &Vec3, t: &Vec3, d: f64) -> Vec3 {
+    let ut = t * t.dot(u);
+    let un = u - ut;
+    0.5 * BLOOD_DENSITY * d * (DRAG_NORMAL * un.norm() * un + std::f64::consts::PI * DRAG_TANGENTIAL * ut.norm() * ut)
+}
+
 /// A blood-flow velocity field (m/s).
 pub trait FlowField: Send + Sync + std::fmt::Debug {
     /// Flow velocity at `p` (m/s).

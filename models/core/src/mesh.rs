@@ -86,7 +86,7 @@ pub fn tet_volume_gradients(p: &[Vec3; 4]) -> [Vec3; 4] {
 /// Kuhn subdivision of the unit cube: corner `k` has offset bits
 /// `(k & 1, k >> 1 & 1, k >> 2 & 1)`; each tet walks from corner 0 to
 /// corner 7 along one permutation of the axes.
-const KUHN: [[usize; 4]; 6] = [
+pub(crate) const KUHN: [[usize; 4]; 6] = [
     [0, 1, 3, 7],
     [0, 1, 5, 7],
     [0, 2, 3, 7],

@@ -39,17 +39,90 @@
 //!   [`RigidChain::max_joint_gap`].
 //!
 //! Gravity acts on every link; a tip force acts on the tip point of the last
-//! link and a tip torque on the last link. The operator turns the clamp
-//! about its axis (a kinematic DOF); pushing wire through it is not modelled
-//! yet. The hand force is the force the rod exerts on the clamp: the
-//! external forces minus the rate of change of the rod's momentum
-//! (Newton-Euler on the whole rod, the clamp's half cell included). SI
-//! units.
+//! link and a tip torque on the last link. The operator slides the clamp
+//! along and turns it about its axis (two kinematic DOFs; the whole chain
+//! advances with the clamp, as DER's clamp does). With a vessel
+//! ([`RigidChain::add_wall`]) every link is a capsule against the wall's
+//! triangle mesh, with rapier's Coulomb friction; with blood
+//! ([`RigidChain::set_flow`]) each link feels the shared quadratic drag.
+//! The hand force is the force the rod exerts on the clamp: the external
+//! forces (wall contacts included, read back from rapier's contact
+//! impulses) minus the rate of change of the rod's momentum (Newton-Euler
+//! on the whole rod, the clamp's half cell included). SI units.
 
 use rapier3d_f64::glamx::{DQuat, DVec3};
 use rapier3d_f64::prelude::*;
+use std::sync::Arc;
 use surgbench_core::beam::first_bending_frequency;
+use surgbench_core::flow::{FlowField, drag_per_length};
+use surgbench_core::io::TriSurface;
 use surgbench_core::{DeviceCommand, EnergyObs, Iso3, Mat3, RodBody, RodObs, RodVelocity, SimError, Vec3};
+
+/// The impulse (N s, world frame) rapier's contact solver applied over the
+/// last step to the first collider of a contact point: `-n` times the
+/// normal impulse plus the friction impulse. rapier keeps the friction
+/// impulse summed over the substeps only in the tangent basis
+/// `(t1, n' x t1)` of its constraint (`n' = -n`, `t1` chosen from the
+/// sliding direction each step), and the last substep's impulse both in
+/// that basis `(a, b)` and in world coordinates `w`; `t1` follows from
+/// them: `a w - b (n' x w) = (a^2 + b^2) t1`.
+fn contact_impulse(normal: &Vec3, d: &ContactData) -> Vec3 {
+    let dir = -normal;
+    let (a, b) = (d.warmstart_tangent_impulse.x, d.warmstart_tangent_impulse.y);
+    let w = nv(d.warmstart_tangent_world);
+    let norm2 = a * a + b * b;
+    let friction = if norm2 > 0.0 {
+        let t1 = (a * w - b * dir.cross(&w)) / norm2;
+        let t2 = dir.cross(&t1);
+        t1 * d.tangent_impulse.x + t2 * d.tangent_impulse.y
+    } else {
+        // No friction in the last substep: the basis is lost; earlier
+        // substeps' friction (if any) is taken as the last one's, zero.
+        w
+    };
+    dir * d.impulse + friction
+}
+
+/// A collider that adds no mass (the links' mass comes from their
+/// sections), with friction `friction` (the mean of both sides' is the
+/// pair's), no restitution, in group `member` and touching only `touches`.
+fn surface_collider(b: ColliderBuilder, friction: f64, member: Group, touches: Group) -> ColliderBuilder {
+    b.density(0.0)
+        .friction(friction)
+        .friction_combine_rule(CoefficientCombineRule::Average)
+        .restitution(0.0)
+        .collision_groups(InteractionGroups::new(member, touches, InteractionTestMode::And))
+}
+
+/// Force and torque about the world origin (N, N m) that the contacts of
+/// collider `wall` put on the other colliders of their pairs over a step
+/// of `dt` (s), from rapier's contact impulses.
+fn wall_wrench_on_others(world: &PhysicsWorld, wall: ColliderHandle, dt: f64) -> (Vec3, Vec3) {
+    let mut f = Vec3::zeros();
+    let mut t = Vec3::zeros();
+    for pair in world.narrow_phase.contact_pairs_with(wall) {
+        let other_first = pair.collider1 != wall;
+        let other = if other_first { pair.collider1 } else { pair.collider2 };
+        let Some(pose) = world.colliders.get(other).map(|c| *c.position()) else {
+            continue;
+        };
+        for m in pair.solver_manifolds() {
+            let n = nv(m.data.normal);
+            for pt in &m.points {
+                let j1 = contact_impulse(&n, &pt.data);
+                let (j, local) = if other_first {
+                    (j1, pt.local_p1)
+                } else {
+                    (-j1, pt.local_p2)
+                };
+                let x = nv(pose.transform_point(local));
+                f += j / dt;
+                t += x.cross(&j) / dt;
+            }
+        }
+    }
+    (f, t)
+}
 
 /// How the links are joined.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -139,10 +212,20 @@ pub struct RigidChain {
     body: RodBody,
     gravity: Vec3,
     time: f64,
-    /// Linear momentum and angular momentum about the clamp point after the
-    /// last step, for the hand force.
+    /// Linear momentum and angular momentum about the world origin after
+    /// the last step, for the hand force.
     momentum: (Vec3, Vec3),
+    /// Force and torque about the world origin the chain put on the clamp
+    /// over the last step.
     hand: (Vec3, Vec3),
+    /// The vessel wall's collider, if the scene has a vessel.
+    wall: Option<ColliderHandle>,
+    flow: Option<Arc<dyn FlowField>>,
+    /// Drag force and torque about the origin applied over the last step.
+    drag: (Vec3, Vec3),
+    /// Force and torque about the origin the wall put on the chain over
+    /// the last step.
+    wall_wrench: (Vec3, Vec3),
 }
 
 fn dv(v: &Vec3) -> DVec3 {
@@ -401,6 +484,10 @@ impl RigidChain {
             time: 0.0,
             momentum: (Vec3::zeros(), Vec3::zeros()),
             hand: (Vec3::zeros(), Vec3::zeros()),
+            wall: None,
+            flow: None,
+            drag: (Vec3::zeros(), Vec3::zeros()),
+            wall_wrench: (Vec3::zeros(), Vec3::zeros()),
         };
         if let Some(v) = &body.initial_velocity {
             chain.set_initial_velocity(v);
@@ -466,6 +553,84 @@ impl RigidChain {
                 }
             }
         }
+    }
+
+    /// Put the vessel wall `surface` around the chain: its triangles wound
+    /// with normals out of the lumen (as `surgbench_core::sdf::level_surface`
+    /// gives them), friction coefficient `friction` between wire and wall,
+    /// the wire kept `margin` (m) from it. Every link becomes a capsule of
+    /// its section's radius plus `margin`; links do not collide with each
+    /// other (no model here has self-contact). The wall is one-sided
+    /// (parry's `FIX_INTERNAL_EDGES`, which also keeps a capsule sliding
+    /// over the mesh from catching on the edges between facets), facing the
+    /// lumen. rapier's tolerances (its linear slop, prediction distance and
+    /// corrective speed, all "normalized" by `length_unit`) are scaled to
+    /// the thinnest capsule: at rapier's default of 1 m its slop alone
+    /// (5 mm) exceeds a guidewire's lumen clearance.
+    pub fn add_wall(
+        &mut self,
+        surface: &TriSurface,
+        friction: f64,
+        margin: f64,
+        contact_hz: f64,
+    ) -> Result<(), String> {
+        if self.wall.is_some() {
+            return Err("the chain already has a wall".into());
+        }
+        if surface.triangles.is_empty() {
+            return Err("the vessel wall has no triangles near the wire".into());
+        }
+        if !(friction >= 0.0 && friction.is_finite() && margin >= 0.0 && margin.is_finite()) {
+            return Err(format!("friction {friction} and margin {margin} must be >= 0"));
+        }
+        let vertices = surface.vertices.iter().map(dv).collect();
+        // parry keeps bodies on the side a one-sided mesh's normals point to.
+        let indices = surface
+            .triangles
+            .iter()
+            .map(|t| [t[0] as u32, t[2] as u32, t[1] as u32])
+            .collect();
+        let collider = ColliderBuilder::trimesh_with_flags(vertices, indices, TriMeshFlags::FIX_INTERNAL_EDGES)
+            .map_err(|e| format!("rapier rejected the wall mesh: {e:?}"))?;
+        let wall = self.world.insert_collider(
+            surface_collider(collider, friction, Group::GROUP_2, Group::GROUP_1),
+            None,
+        );
+        let mut thinnest = f64::INFINITY;
+        for k in 0..self.links.len() {
+            let l = self.links[k];
+            let r = self.body.section_at(self.joint_s[k] + 0.5 * l.length).radius + margin;
+            thinnest = thinnest.min(r);
+            let capsule = surface_collider(
+                ColliderBuilder::capsule_x(0.5 * l.length, r).translation(DVec3::new(0.5 * l.length, 0.0, 0.0)),
+                friction,
+                Group::GROUP_1,
+                Group::GROUP_2,
+            );
+            self.world.insert_collider(capsule, Some(l.handle));
+        }
+        self.world.integration_parameters.length_unit = thinnest;
+        // rapier caps body speeds at 400 length units per second; scaled to
+        // a guidewire that is 0.18 m/s, below a whipping tip's speed.
+        self.world.integration_parameters.normalized_max_linear_velocity = f64::MAX;
+        // One Coulomb cone per contact point, as multibody links always
+        // get: impulse-joint links would otherwise get rapier's faster
+        // "simplified" friction (one cone per four points plus a twist).
+        self.world.integration_parameters.friction_model = FrictionModel::Coulomb;
+        self.world
+            .integration_parameters
+            .static_contact_softness
+            .natural_frequency = contact_hz;
+        self.wall = Some(wall);
+        Ok(())
+    }
+
+    /// Blood flow around the chain: each link feels the drag of
+    /// `surgbench_core::flow` at its midpoint, from the flow and the link's
+    /// velocity at the start of the step (explicit; its rate `c / m` is
+    /// ~70 1/s for a 0.89 mm wire in 0.5 m/s blood, 0.07 of a 1 ms step).
+    pub fn set_flow(&mut self, flow: Arc<dyn FlowField>) {
+        self.flow = Some(flow);
     }
 
     /// Simulated time (s).
@@ -586,55 +751,48 @@ impl RigidChain {
         v + w.cross(&(x - com))
     }
 
-    /// Linear momentum and angular momentum about the clamp point.
+    /// Linear momentum and angular momentum about the world origin.
     fn momenta(&self) -> (Vec3, Vec3) {
-        let c = self.clamp_now.translation.vector;
         let mut p = Vec3::zeros();
         let mut l = Vec3::zeros();
         for b in std::iter::once(&self.carriage).chain(&self.links) {
             let (x, v, w, i) = self.body_state(b);
             p += b.mass * v;
-            l += (x - c).cross(&(b.mass * v)) + i * w;
+            l += x.cross(&(b.mass * v)) + i * w;
         }
         (p, l)
     }
 
-    /// External force and torque about the clamp point on the rod: gravity
-    /// (on the links and on the half cell the clamp holds) and the tip loads
-    /// at the current time.
+    /// External force and torque about the world origin on the rod:
+    /// gravity (on the links and on the half cell the clamp holds), the tip
+    /// loads at the current time, and the drag and wall forces of the last
+    /// step.
     fn external_wrench(&self) -> (Vec3, Vec3) {
-        let c = self.clamp_now.translation.vector;
-        let mut f = Vec3::zeros();
-        let mut t = Vec3::zeros();
+        let mut f = self.drag.0 + self.wall_wrench.0;
+        let mut t = self.drag.1 + self.wall_wrench.1;
         for b in std::iter::once(&self.carriage).chain(&self.links) {
             let (x, ..) = self.body_state(b);
             let w = b.mass * self.gravity;
             f += w;
-            t += (x - c).cross(&w);
+            t += x.cross(&w);
         }
         let tip_f = self.body.tip_force_at(self.time);
         f += tip_f;
-        t += (self.tip() - c).cross(&tip_f) + self.body.tip_torque_at(self.time);
+        t += self.tip().cross(&tip_f) + self.body.tip_torque_at(self.time);
         (f, t)
     }
 
     /// Advance by `dt` (s) to the operator's command `cmd`.
     pub fn step(&mut self, dt: f64, cmd: &DeviceCommand) -> Result<(), SimError> {
         SimError::check_dt(self.time, dt)?;
-        if cmd.insertion != 0.0 {
-            return Err(SimError::SolverFailed {
-                t: self.time,
-                reason: "the rigid chain does not feed wire through its clamp (insertion)".into(),
-            });
-        }
         let t1 = self.time + dt;
         if cmd.base_pose.is_some_and(|p| p != self.clamp) {
             return Err(SimError::SolverFailed {
                 t: self.time,
-                reason: "the rigid chain's clamp turns about its axis but does not move (a moving base pose)".into(),
+                reason: "the rigid chain's clamp slides along and turns about its axis but does not move otherwise (a moving base pose)".into(),
             });
         }
-        self.clamp_now = self.clamp * turn(cmd.rotation);
+        self.clamp_now = self.clamp * Iso3::translation(cmd.insertion, 0.0, 0.0) * turn(cmd.rotation);
         match &self.joints {
             Joints::Multibody { handles, .. } => {
                 // The turn's rate that lands the kinematic DOF on the command
@@ -646,9 +804,11 @@ impl RigidChain {
                         reason: "rapier lost the chain's multibody".into(),
                     });
                 };
-                let turned = mb.link(1).map_or(0.0, |l| l.joint().coords()[3]);
+                let (slid, turned) = mb
+                    .link(1)
+                    .map_or((0.0, 0.0), |l| (l.joint().coords()[0], l.joint().coords()[3]));
                 let mut gv = mb.generalized_velocity_mut();
-                gv[0] = 0.0;
+                gv[0] = (cmd.insertion - slid) / dt;
                 gv[1] = (cmd.rotation - turned) / dt;
             }
             Joints::Impulse => {
@@ -656,22 +816,48 @@ impl RigidChain {
                 self.world.bodies[self.carriage.handle].set_next_kinematic_position(pose);
             }
         }
-        // The tip force at the tip point: at the centre of mass plus its
+        // Forces at points of the links: at the centre of mass plus their
         // moment about it (from this chain's own centre of mass: rapier's
         // world one is stale until the body's first step).
         let n = self.links.len();
+        let mut loads = vec![(Vec3::zeros(), Vec3::zeros()); n];
+        let tip_force = self.body.tip_force_at(t1);
         let (com, ..) = self.link_state(n - 1);
-        let force = self.body.tip_force_at(t1);
-        let torque = (self.tip() - com).cross(&force) + self.body.tip_torque_at(t1);
-        let rb = &mut self.world.bodies[self.links[n - 1].handle];
-        // rapier keeps user forces and torques until reset.
-        rb.reset_forces(false);
-        rb.reset_torques(false);
-        rb.add_force(dv(&force), true);
-        rb.add_torque(dv(&torque), true);
+        loads[n - 1] = (
+            tip_force,
+            (self.tip() - com).cross(&tip_force) + self.body.tip_torque_at(t1),
+        );
+        self.drag = (Vec3::zeros(), Vec3::zeros());
+        if let Some(flow) = self.flow.clone() {
+            for (k, load) in loads.iter_mut().enumerate() {
+                let l = self.links[k];
+                let pose = self.link_pose(k);
+                let mid = nv(pose.transform_point(DVec3::new(0.5 * l.length, 0.0, 0.0)));
+                let tangent = nv(pose.rotation.mul_vec3(DVec3::X));
+                let d = 2.0 * self.body.section_at(self.joint_s[k] + 0.5 * l.length).radius;
+                let u = flow.velocity(&mid) - self.velocity_at(k, &mid);
+                let f = drag_per_length(&u, &tangent, d) * l.length;
+                let (com, ..) = self.link_state(k);
+                load.0 += f;
+                load.1 += (mid - com).cross(&f);
+                self.drag.0 += f;
+                self.drag.1 += mid.cross(&f);
+            }
+        }
+        for (k, (force, torque)) in loads.iter().enumerate() {
+            let rb = &mut self.world.bodies[self.links[k].handle];
+            // rapier keeps user forces and torques until reset.
+            rb.reset_forces(false);
+            rb.reset_torques(false);
+            rb.add_force(dv(force), true);
+            rb.add_torque(dv(torque), true);
+        }
         self.world.integration_parameters.dt = dt;
         self.world.step();
         self.time = t1;
+        if let Some(w) = self.wall {
+            self.wall_wrench = wall_wrench_on_others(&self.world, w, dt);
+        }
         let finite = self.links.iter().all(|l| {
             let rb = &self.world.bodies[l.handle];
             rb.translation().is_finite() && rb.linvel().is_finite() && rb.angvel().is_finite()
@@ -692,7 +878,15 @@ impl RigidChain {
     /// Force and torque (about the clamp point) the chain exerts on the
     /// clamp over the last step (N, N m).
     pub fn hand_wrench(&self) -> (Vec3, Vec3) {
-        self.hand
+        let c = self.clamp_now.translation.vector;
+        (self.hand.0, self.hand.1 - c.cross(&self.hand.0))
+    }
+
+    /// Force and torque (about the clamp point) the wall put on the chain
+    /// over the last step (N, N m); zero without a wall.
+    pub fn wall_wrench(&self) -> (Vec3, Vec3) {
+        let c = self.clamp_now.translation.vector;
+        (self.wall_wrench.0, self.wall_wrench.1 - c.cross(&self.wall_wrench.0))
     }
 
     /// The chain as a rod: nodes at the clamp, at every joint and at the
@@ -765,6 +959,78 @@ fn turn(angle: f64) -> Iso3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A free capsule on a triangle floor under tilted gravity: the wall
+    /// impulse read back from rapier's contacts closes the capsule's
+    /// momentum balance, `m dv = (m g + F_wall) dt`, both while it slides
+    /// (tilt past the friction angle) and while friction holds it.
+    #[test]
+    fn wall_impulse_closes_the_momentum_balance() {
+        for (tilt, mu) in [(0.5f64, 0.2), (0.1, 0.3)] {
+            let mut world = PhysicsWorld::new();
+            let g = Vec3::new(9.81 * tilt.sin(), 0.0, -9.81 * tilt.cos());
+            world.gravity = dv(&g);
+            world.integration_parameters.dt = 1e-3;
+            world.integration_parameters.length_unit = 1e-3;
+            // As in the chain: rapier's speed cap (400 length units/s) off.
+            world.integration_parameters.normalized_max_linear_velocity = f64::MAX;
+            world.integration_parameters.friction_model = FrictionModel::Coulomb;
+            let floor = ColliderBuilder::trimesh(
+                vec![
+                    DVec3::new(-1.0, -1.0, 0.0),
+                    DVec3::new(1.0, -1.0, 0.0),
+                    DVec3::new(1.0, 1.0, 0.0),
+                    DVec3::new(-1.0, 1.0, 0.0),
+                ],
+                vec![[0, 1, 2], [0, 2, 3]],
+            )
+            .unwrap()
+            .friction(mu);
+            let wall = world.insert_collider(floor, None);
+            let m = 1e-3;
+            let body = world.insert_body(
+                RigidBodyBuilder::dynamic()
+                    .translation(DVec3::new(0.0, 0.0, 1e-3))
+                    .additional_mass_properties(MassProperties::new(DVec3::ZERO, m, DVec3::splat(1e-9)))
+                    .can_sleep(false),
+            );
+            world.insert_collider(
+                ColliderBuilder::capsule_x(5e-3, 1e-3).density(0.0).friction(mu),
+                Some(body),
+            );
+            let mut worst: f64 = 0.0;
+            let mut wall_force = Vec3::zeros();
+            for _ in 0..400 {
+                let v0 = nv(world.bodies[body].linvel());
+                world.step();
+                let v1 = nv(world.bodies[body].linvel());
+                wall_force = wall_wrench_on_others(&world, wall, 1e-3).0;
+                let residual = m * (v1 - v0) / 1e-3 - (m * g + wall_force);
+                worst = worst.max(residual.norm() / (m * 9.81));
+            }
+            // Impulses and velocities are the same floating-point sums.
+            assert!(worst < 1e-9, "tilt {tilt}: momentum residual {worst:e} of the weight");
+            let normal = wall_force.z;
+            let weight_n = m * 9.81 * tilt.cos();
+            // Resting on the floor at the end: normal force = weight's
+            // normal part (to the solver's softness), friction mu N while
+            // sliding (tan 0.5 > 0.2; Coulomb on the measured N), the
+            // weight's tangential part while stuck (tan 0.1 < 0.3).
+            assert!(
+                (normal - weight_n).abs() < 1e-6 * weight_n,
+                "normal {normal} vs {weight_n}"
+            );
+            let friction = Vec3::new(wall_force.x, wall_force.y, 0.0).norm();
+            let want = if tilt.tan() > mu {
+                mu * normal
+            } else {
+                m * 9.81 * tilt.sin()
+            };
+            // 1e-4: the held capsule still creeps on rapier's soft contact
+            // after 0.4 s (measured 9e-6).
+            assert!((friction - want).abs() < 1e-4 * want, "friction {friction} vs {want}");
+        }
+    }
 
     /// Two sections: the mass is the sum of the two cylinders, the centre
     /// of mass their weighted mean (exact arithmetic up to round-off).

@@ -13,6 +13,8 @@
 //! - [`TransformedSdf`]: any SDF moved rigidly;
 //! - [`MeshSdf`]: exact distance to a closed triangle mesh through parry3d
 //!   (slow: microseconds per query; for building grids and checking them);
+//! - [`level_surface`]: the zero level set of any SDF as triangles (for a
+//!   collision engine that needs the wall as a mesh);
 //! - [`VoxelSdf`]: a regular grid sampled by trilinear interpolation with the
 //!   interpolant's analytic gradient (the fast path for models), built from
 //!   any SDF or mesh, cacheable to disk.
@@ -37,12 +39,14 @@ use std::sync::Arc;
 mod cubic;
 mod displaced;
 mod mesh;
+mod surface;
 mod swept;
 mod voxel;
 
 pub use cubic::CubicVoxelSdf;
 pub use displaced::{DisplacedLumen, SHEPARD_FLOOR, WallSamples};
 pub use mesh::MeshSdf;
+pub use surface::level_surface;
 pub use swept::*;
 pub use voxel::*;
 
