@@ -29,7 +29,12 @@ const DURATION_CAP: f64 = 1.0;
 /// Model x scenario pairs that are not `ok` at their defaults even so, with
 /// what was measured: each is a strict expected failure (a fix shows up
 /// here as a test failure asking to remove the entry).
-const KNOWN_UNSTABLE: &[(&str, &str, &str)] = &[];
+const KNOWN_UNSTABLE: &[(&str, &str, &str)] = &[(
+    "multibody",
+    "capstan",
+    "stretch watchdog at t = 2.2 s on impulse joints (0.7 s on multibody joints): the 40 links threaded through \
+     a lumen 0.26 mm wider than the wire pull apart at their joints",
+)];
 
 /// What happened to one model on one scenario at its defaults.
 enum Outcome {

@@ -9,20 +9,11 @@ use surgbench_core::{
     Vec3,
 };
 
-/// What the chain simulates in this version. Built but not offered yet:
-/// insertion, vessel contact with friction and flow drag
-/// ([`RigidChain::add_wall`], [`RigidChain::set_flow`], the clamp's slide
-/// DOF). On the static-vessel scenes at 40 links the chain runs
-/// `flow-drift` (tip 0.4 mm from DER's reference) and the first 3 s of
-/// `arch-insertion` (wire 79 um past the wall at most),
-/// but `stick-slip-threshold` and `capstan` trip the watchdog within five
-/// steps (joints torn apart under kilonewton contact forces) and
-/// `branch-selection` and `vessel-mesh-insertion` after 3.2 s and 1.3 s:
-/// until that is understood, scenes with a vessel, insertion or blood are
-/// refused with this list. Not at all: a moving vessel (rapier's triangle
-/// mesh would have to be rebuilt each step to follow a non-rigid motion)
-/// or a deforming one. Friction is rapier's Coulomb cone with one
-/// coefficient, the scene's dynamic one.
+/// What the chain simulates. Not: a moving vessel (rapier's triangle mesh
+/// would have to be rebuilt each step to follow a non-rigid motion) or a
+/// deforming one; scenes that need them are refused with the list.
+/// Friction is rapier's Coulomb cone with one coefficient, the scene's
+/// dynamic one: a wire sticks until `mu_d N`, not `mu_s N`.
 const CAPABILITIES: &[Capability] = &[
     Capability::Rod,
     Capability::Twist,
@@ -30,6 +21,10 @@ const CAPABILITIES: &[Capability] = &[
     Capability::LoadRamp,
     Capability::VaryingProperties,
     Capability::RestCurvature,
+    Capability::Insertion,
+    Capability::VesselContact,
+    Capability::Friction,
+    Capability::Flow,
     Capability::InitialVelocity,
     Capability::HapticForce,
 ];
@@ -41,11 +36,11 @@ const KEYS: &[FidelityKey] = &[
         &[
             Choice::new(
                 "multibody",
-                "reduced-coordinate multibody, implicit joint springs (default)",
+                "reduced-coordinate multibody, implicit joint springs (default, except dynamic scenes with a vessel)",
             ),
             Choice::new(
                 "impulse",
-                "impulse joints: free bodies, iterative constraints, springs as force-based joint motors",
+                "impulse joints: free bodies, iterative constraints, springs as force-based joint motors (default in dynamic scenes with a vessel, where wall contacts push a multibody's clamp off its command)",
             ),
         ],
     ),
@@ -61,12 +56,12 @@ const KEYS: &[FidelityKey] = &[
     .at_least(0.0),
     FidelityKey::number(
         "contact_hz",
-        "vessel scenes (not offered yet): natural frequency (Hz) of rapier's soft contact against the wall; default 1/(4 dt), a quarter period per step (rapier's own 60 Hz lets a guidewire sink 1 mm into the arch)",
+        "vessel scenes: natural frequency (Hz) of rapier's soft contact against the wall; default 1/(4 dt), a quarter period per step (rapier's own 60 Hz lets a guidewire sink 1 mm into the arch)",
     )
     .at_least(1e-9),
     FidelityKey::number(
         "wall_spacing",
-        "vessel scenes (not offered yet): grid spacing (m) of the vessel wall's triangle mesh (marching tetrahedra on the scene's SDF); default 1/8 of the clamp's distance to the wall (chord sag ~ 0.2 % of a round lumen's radius)",
+        "vessel scenes: grid spacing (m) of the vessel wall's triangle mesh (marching tetrahedra on the scene's SDF); default 1/8 of the clamp's distance to the wall (chord sag ~ 0.2 % of a round lumen's radius)",
     )
     .at_least(1e-9),
 ];
@@ -142,6 +137,20 @@ impl ModelFactory for MultibodyFactory {
     /// integrator's own and rapier's 4 substeps, which cut backward Euler's
     /// damping per period fourfold (`exp(-pi omega dt / substeps)` of the
     /// amplitude).
+    ///
+    /// Dynamic scenes with a vessel get impulse joints: with multibody
+    /// joints the 40-link wire trips the stretch watchdog in
+    /// `branch-selection` (t = 2.9 s), `vessel-mesh-insertion` (1.5 s) and
+    /// `capstan` (0.7 s). A likely cause, read in rapier 0.36.1's source
+    /// and not verified: its contact Jacobians leave the clamp's kinematic
+    /// DOFs at unit inverse mass (`Multibody::fill_jacobians` solves only
+    /// the other rows), so contacts can push the clamp off its command. A
+    /// multibody step is also 10 to 24 times the cost with
+    /// hundreds of wall contacts. On impulse joints the same runs end `ok`
+    /// (capstan still trips at 2.2 s). The static scene with a vessel
+    /// (`flow-drift`, whose wire starts clear of the wall) keeps multibody
+    /// joints: impulse joints at one substep open there by 17 % of a link
+    /// in the first step.
     fn default_fidelity(&self, scene: &Scene) -> Fidelity {
         let mut f = Fidelity {
             segments: Some(DEFAULT_LINKS),
@@ -151,6 +160,9 @@ impl ModelFactory for MultibodyFactory {
             extras: Default::default(),
         };
         let statics = scene.settle.is_some();
+        if !statics && scene.environment.vessel.is_some() {
+            f.extras.insert("joint".into(), "impulse".into());
+        }
         f.extras
             .insert("damping".into(), if statics { 1.0 } else { 0.0 }.into());
         f.extras
@@ -196,7 +208,13 @@ impl ModelFactory for MultibodyFactory {
             // the clamp is pushed, around the clamp.
             let feed = scene.control.keys.iter().map(|k| k.insertion.abs()).fold(0.0, f64::max);
             let reach = Vec3::repeat(body.length + feed + 2.0 * clearance);
-            let surface = level_surface(vessel.as_ref(), clamp - reach, clamp + reach, spacing)
+            // The facets are chords of the wall, up to sqrt(3) spacing long
+            // (grid diagonals): on a lumen of radius R they cut up to
+            // 3 spacing^2 / (8 R) into it. The surface is moved out by
+            // that much, so that a wire touching the true wall (a clamp on
+            // it, a wire laid on it) is not pushed off it by the mesh.
+            let level = 3.0 * spacing * spacing / (8.0 * clearance);
+            let surface = level_surface(vessel.as_ref(), level, clamp - reach, clamp + reach, spacing)
                 .map_err(|e| BuildError::bad("wall_spacing", e))?;
             let contact = scene.environment.contact;
             chain
