@@ -56,7 +56,7 @@ const KEYS: &[FidelityKey] = &[
     .at_least(0.0),
     FidelityKey::number(
         "contact_hz",
-        "vessel scenes: natural frequency (Hz) of rapier's soft contact against the wall; default 1/(4 dt), a quarter period per step (rapier's own 60 Hz lets a guidewire sink 1 mm into the arch)",
+        "vessel scenes: natural frequency (Hz) of rapier's soft contact against the wall; default 1/(4 dt), a quarter period per step (rapier's own default is 60 Hz)",
     )
     .at_least(1e-9),
     FidelityKey::number(
