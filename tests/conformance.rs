@@ -16,7 +16,21 @@ use surgbench_core::ModelFactory;
 /// Model x scenario pairs known to break rigid-motion invariance, with what
 /// was measured; each is open (noted on its issue) and checked as a strict
 /// expected failure, so a fix shows up here.
-const KNOWN_FRAME_DEPENDENT: &[KnownDefect] = &[];
+const KNOWN_FRAME_DEPENDENT: &[KnownDefect] = &[
+    // The wall mesh moves with the scene (its grid is in the clamp's
+    // frame). Likely cause, not verified: rapier solves the contacts by
+    // projected Gauss-Seidel, one sweep per substep, in the order its broad
+    // phase (world-axis bounding boxes) finds them, and the unconverged
+    // sweep depends on that order. Only the scenes in contact within the
+    // check's first steps show it.
+    (
+        "multibody",
+        "capstan",
+        "measured 5.7e-4 m (a wire threaded through a tight bend, \
+         unstable later)",
+    ),
+    ("multibody", "stick-slip-threshold", "measured 4.1e-6 m"),
+];
 
 /// The registered models, or those `SURGBENCH_MODELS` names.
 fn models() -> Vec<&'static dyn ModelFactory> {

@@ -214,7 +214,9 @@ impl ModelFactory for MultibodyFactory {
             // that much, so that a wire touching the true wall (a clamp on
             // it, a wire laid on it) is not pushed off it by the mesh.
             let level = 3.0 * spacing * spacing / (8.0 * clearance);
-            let surface = level_surface(vessel.as_ref(), level, clamp - reach, clamp + reach, spacing)
+            // The grid in the clamp's frame: a scene moved rigidly gets
+            // the same wall, moved.
+            let surface = level_surface(vessel.as_ref(), level, &body.base, -reach, reach, spacing)
                 .map_err(|e| BuildError::bad("wall_spacing", e))?;
             let contact = scene.environment.contact;
             chain

@@ -27,6 +27,7 @@ fn wire_on_floor(joint: JointKind) -> (RigidChain, f64) {
     let wall = level_surface(
         tube.as_ref(),
         3.0 * h * h / (8.0 * TUBE),
+        &Iso3::identity(),
         Vec3::new(-0.02, -3e-3, -3e-3),
         Vec3::new(0.13, 3e-3, 3e-3),
         h,

@@ -3,8 +3,8 @@
 //! the scene gives the lumen only as a signed distance.
 
 use super::Sdf;
-use crate::Vec3;
 use crate::io::TriSurface;
+use crate::{Iso3, Vec3};
 // Neighbouring cubes cut their shared faces along the same diagonal, so
 // the surface has no cracks.
 use crate::mesh::KUHN;
@@ -18,14 +18,17 @@ type Node = [i64; 3];
 struct Grid<'a> {
     sdf: &'a dyn Sdf,
     level: f64,
+    frame: Iso3,
     lo: Vec3,
     h: f64,
     values: HashMap<Node, f64>,
 }
 
 impl Grid<'_> {
+    /// Grid node `n` in world coordinates.
     fn point(&self, n: Node) -> Vec3 {
-        self.lo + Vec3::new(n[0] as f64, n[1] as f64, n[2] as f64) * self.h
+        let local = self.lo + Vec3::new(n[0] as f64, n[1] as f64, n[2] as f64) * self.h;
+        self.frame.transform_point(&local.into()).coords
     }
 
     fn value(&mut self, n: Node) -> f64 {
@@ -39,8 +42,10 @@ impl Grid<'_> {
 }
 
 /// Triangles of the level set `phi = level` (m) of `sdf` inside the box
-/// `[lo, hi]` (m), by marching tetrahedra on a grid of spacing `spacing`
-/// (m), oriented with their normals (right-hand rule) towards positive
+/// `[lo, hi]` (m) of the frame `frame` (world coordinates out: a scene
+/// moved rigidly with its frame gets the same mesh, moved), by marching
+/// tetrahedra on a grid of spacing `spacing` (m) along the frame's axes,
+/// oriented with their normals (right-hand rule) towards positive
 /// distance, i.e. out of the lumen into the wall. `level = 0` is the wall;
 /// a positive level moves the surface out by that much, e.g. so that the
 /// facets, chords of a round lumen, do not cut into it.
@@ -56,7 +61,14 @@ impl Grid<'_> {
 /// open where the box clips the wall; vertices on a shared grid edge are
 /// shared, so it is a connected mesh where the wall is. Zero-area
 /// triangles (a vertex exactly on a sample) are dropped.
-pub fn level_surface(sdf: &dyn Sdf, level: f64, lo: Vec3, hi: Vec3, spacing: f64) -> Result<TriSurface, String> {
+pub fn level_surface(
+    sdf: &dyn Sdf,
+    level: f64,
+    frame: &Iso3,
+    lo: Vec3,
+    hi: Vec3,
+    spacing: f64,
+) -> Result<TriSurface, String> {
     if !(spacing > 0.0 && spacing.is_finite()) {
         return Err(format!("grid spacing must be > 0, got {spacing}"));
     }
@@ -75,6 +87,7 @@ pub fn level_surface(sdf: &dyn Sdf, level: f64, lo: Vec3, hi: Vec3, spacing: f64
     let mut grid = Grid {
         sdf,
         level,
+        frame: *frame,
         lo,
         h: spacing,
         values: HashMap::new(),
@@ -91,9 +104,10 @@ pub fn level_surface(sdf: &dyn Sdf, level: f64, lo: Vec3, hi: Vec3, spacing: f64
             continue;
         }
         let half_diag = 0.5 * 3f64.sqrt() * size as f64 * spacing;
-        let centre = grid.lo
+        let local = grid.lo
             + Vec3::new(at[0] as f64, at[1] as f64, at[2] as f64) * spacing
             + Vec3::repeat(0.5 * size as f64 * spacing);
+        let centre = grid.frame.transform_point(&local.into()).coords;
         if (sdf.distance(&centre) - level).abs() > 2.0 * half_diag + spacing {
             continue;
         }
@@ -210,7 +224,15 @@ mod tests {
         };
         let len = 10e-3;
         let h = r / 8.0;
-        let s = level_surface(&tube, 0.0, Vec3::new(0.0, -3e-3, -3e-3), Vec3::new(len, 3e-3, 3e-3), h).unwrap();
+        let s = level_surface(
+            &tube,
+            0.0,
+            &Iso3::identity(),
+            Vec3::new(0.0, -3e-3, -3e-3),
+            Vec3::new(len, 3e-3, 3e-3),
+            h,
+        )
+        .unwrap();
         assert!(s.triangles.len() > 1000);
         let sag = h * h / (8.0 * r);
         for v in &s.vertices {
@@ -261,6 +283,7 @@ mod tests {
         let s = level_surface(
             &tube,
             0.0,
+            &Iso3::identity(),
             Vec3::new(-0.01, -0.005, -0.005),
             Vec3::new(0.015, 0.03, 0.005),
             2e-4,
