@@ -888,15 +888,19 @@ impl RigidChain {
     /// Force and torque (about the clamp point) the chain exerts on the
     /// clamp over the last step (N, N m).
     pub fn hand_wrench(&self) -> (Vec3, Vec3) {
-        let c = self.clamp_now.translation.vector;
-        (self.hand.0, self.hand.1 - c.cross(&self.hand.0))
+        self.about_clamp(self.hand)
     }
 
     /// Force and torque (about the clamp point) the wall put on the chain
     /// over the last step (N, N m); zero without a wall.
     pub fn wall_wrench(&self) -> (Vec3, Vec3) {
-        let c = self.clamp_now.translation.vector;
-        (self.wall_wrench.0, self.wall_wrench.1 - c.cross(&self.wall_wrench.0))
+        self.about_clamp(self.wall_wrench)
+    }
+
+    /// A wrench about the world origin moved to the clamp point:
+    /// `(f, t - c x f)`.
+    fn about_clamp(&self, (f, t): (Vec3, Vec3)) -> (Vec3, Vec3) {
+        (f, t - self.clamp_now.translation.vector.cross(&f))
     }
 
     /// The chain as a rod: nodes at the clamp, at every joint and at the
