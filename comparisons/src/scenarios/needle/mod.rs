@@ -14,22 +14,93 @@
 //! force the needle exerts on the hand: the hand pushes with its negative.
 
 mod cycles;
+mod steering;
 mod stick_slip;
 mod straight;
 
 pub use cycles::{CyclesParams, NEEDLE_CYCLES};
+pub use steering::{BevelParams, DoubleBendParams, NEEDLE_BEVEL, NEEDLE_DOUBLE_BEND};
 pub use stick_slip::{NEEDLE_STICK_SLIP, StickSlipParams};
 pub use straight::{NEEDLE_STRAIGHT, StraightParams};
 
-use crate::scenario::{Scenario, Sweep, UsageError};
+use crate::scenario::{ParamSpec, Range, Scenario, Sweep, UsageError};
 use surgbench_core::{
     Body, ControlKey, ControlTimeline, Fidelity, Iso3, NeedleTissue, RodBody, Scene, SolidMaterial, TetMesh,
     TissueBody, Vec3, mesh,
 };
 
+// Parameters every needle scene shares (SI units).
+
+/// Coulomb friction per length of shaft (N/m): an illustrative value of these scenes, not a measurement.
+const P_FRICTION_PER_LENGTH: ParamSpec = ParamSpec::new(
+    "friction_per_length",
+    20.0,
+    "N/m",
+    Range::NonNegative,
+    "Coulomb friction per length of shaft in the tissue",
+);
+
+/// Force the tip needs to cut (N): illustrative, as the friction.
+const P_CUTTING_FORCE: ParamSpec = ParamSpec::new(
+    "cutting_force",
+    0.05,
+    "N",
+    Range::NonNegative,
+    "force the tip needs to cut",
+);
+
+/// Needle length out of the guide sleeve (m).
+const P_NEEDLE_LENGTH: ParamSpec = ParamSpec::new(
+    "needle_length",
+    0.04,
+    "m",
+    Range::Positive,
+    "needle length out of the guide sleeve",
+);
+
+/// Needle radius (m): 0.83 mm diameter, the seed's phantom needle.
+const P_NEEDLE_RADIUS: ParamSpec = ParamSpec::new("needle_radius", 0.415e-3, "m", Range::Positive, "needle radius");
+
+/// Gel Young's modulus (Pa): 10 wt% gelatin as issue 17 states it.
+const P_GEL_YOUNGS: ParamSpec = ParamSpec::new("youngs_modulus", 14.8e3, "Pa", Range::Positive, "gel Young's modulus");
+
+/// Gel Poisson ratio: 10 wt% gelatin as issue 17 states it.
+const P_GEL_POISSON: ParamSpec =
+    ParamSpec::new("poisson_ratio", 0.475, "1", Range::Open(-1.0, 0.5), "gel Poisson ratio");
+
+/// Gel density (kg/m^3): that of water.
+const P_GEL_DENSITY: ParamSpec = ParamSpec::new("density", 1000.0, "kg/m^3", Range::Positive, "gel density");
+
+/// Block length along the needle (m).
+const P_BLOCK_LENGTH: ParamSpec = ParamSpec::new(
+    "block_length",
+    0.02,
+    "m",
+    Range::Positive,
+    "block length along the needle",
+);
+
+/// Block width and height (m).
+const P_BLOCK_WIDTH: ParamSpec = ParamSpec::new("block_width", 0.01, "m", Range::Positive, "block width and height");
+
+/// Young's modulus of a stiff (stainless steel) needle (Pa).
+const P_STEEL_NEEDLE_YOUNGS: ParamSpec = ParamSpec::new(
+    "needle_youngs_modulus",
+    200e9,
+    "Pa",
+    Range::Positive,
+    "needle Young's modulus",
+);
+
 /// Every needle scenario, in report order.
 pub fn all() -> Vec<&'static dyn Scenario> {
-    vec![&NEEDLE_STRAIGHT, &NEEDLE_STICK_SLIP, &NEEDLE_CYCLES]
+    vec![
+        &NEEDLE_STRAIGHT,
+        &NEEDLE_STICK_SLIP,
+        &NEEDLE_CYCLES,
+        &NEEDLE_BEVEL,
+        &NEEDLE_DOUBLE_BEND,
+    ]
 }
 
 /// Finest mesh level: level 1 is 16 x 8 x 8 cells (6,144 tets); level 2
@@ -45,10 +116,15 @@ const LEVELS: Sweep = Sweep::MeshLevels {
 
 /// `fidelity.mesh_level` (default 0), rejected past [`MAX_LEVEL`].
 fn mesh_level(scenario: &str, fidelity: &Fidelity) -> Result<usize, UsageError> {
+    mesh_level_up_to(scenario, fidelity, MAX_LEVEL)
+}
+
+/// `fidelity.mesh_level` (default 0), rejected past `finest`.
+fn mesh_level_up_to(scenario: &str, fidelity: &Fidelity, finest: usize) -> Result<usize, UsageError> {
     let level = fidelity.mesh_level.unwrap_or(0);
-    if level > MAX_LEVEL {
+    if level > finest {
         return Err(UsageError(format!(
-            "scenario `{scenario}`: mesh_level {level} is past the finest level {MAX_LEVEL}"
+            "scenario `{scenario}`: mesh_level {level} is past the finest level {finest}"
         )));
     }
     Ok(level)

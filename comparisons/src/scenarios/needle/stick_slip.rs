@@ -28,14 +28,14 @@ params! {
         ramp_time: ParamSpec::new("ramp_time", 0.5, "s", Range::Positive, "time for the pull to reach f_perlen * depth; the run ends then"),
         friction_per_length: ParamSpec::new("friction_per_length", 20.0, "N/m", Range::Positive, "Coulomb friction per length of shaft in the tissue"),
         cutting_force: ParamSpec::new("cutting_force", 0.05, "N", Range::NonNegative, "force the tip needs to cut (the block moves away from the tip: unused)"),
-        needle_length: ParamSpec::new("needle_length", 0.04, "m", Range::Positive, "needle length out of the guide sleeve"),
-        needle_radius: ParamSpec::new("needle_radius", 0.415e-3, "m", Range::Positive, "needle radius"),
-        needle_youngs_modulus: ParamSpec::new("needle_youngs_modulus", 200e9, "Pa", Range::Positive, "needle Young's modulus"),
-        youngs_modulus: ParamSpec::new("youngs_modulus", 14.8e3, "Pa", Range::Positive, "gel Young's modulus"),
-        poisson_ratio: ParamSpec::new("poisson_ratio", 0.475, "1", Range::Open(-1.0, 0.5), "gel Poisson ratio"),
-        density: ParamSpec::new("density", 1000.0, "kg/m^3", Range::Positive, "gel density"),
-        block_length: ParamSpec::new("block_length", 0.02, "m", Range::Positive, "block length along the needle"),
-        block_width: ParamSpec::new("block_width", 0.01, "m", Range::Positive, "block width and height"),
+        needle_length: P_NEEDLE_LENGTH,
+        needle_radius: P_NEEDLE_RADIUS,
+        needle_youngs_modulus: P_STEEL_NEEDLE_YOUNGS,
+        youngs_modulus: P_GEL_YOUNGS,
+        poisson_ratio: P_GEL_POISSON,
+        density: P_GEL_DENSITY,
+        block_length: P_BLOCK_LENGTH,
+        block_width: P_BLOCK_WIDTH,
     }
 }
 
