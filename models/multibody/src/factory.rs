@@ -3,7 +3,7 @@
 
 use crate::chain::{ChainParams, JointKind, RigidChain};
 use crate::model::MultibodyModel;
-use surgbench_core::sdf::{Sdf, level_surface};
+use surgbench_core::sdf::{level_surface, lumen_radius_at};
 use surgbench_core::{
     BuildError, Capability, Choice, Family, Fidelity, FidelityKey, Model, ModelFactory, Scene, Settings, Unsupported,
     Vec3,
@@ -72,34 +72,6 @@ const KEYS: &[FidelityKey] = &[
 const WALL_SPACING_OF_RADIUS: f64 = 1.0 / 8.0;
 
 const JOINTS: &[(&str, JointKind)] = &[("multibody", JointKind::Multibody), ("impulse", JointKind::Impulse)];
-
-/// The lumen's radius near `p` (m): the deepest distance to the wall along
-/// the ray from `p` away from its nearest wall point (for a round lumen
-/// the ray meets the axis at `-phi = R`); `None` if `p` is not inside.
-fn lumen_radius_at(vessel: &dyn Sdf, p: &Vec3) -> Option<f64> {
-    let (d0, g) = vessel.distance_gradient(p);
-    if !(d0 < 0.0) || g.norm() == 0.0 {
-        return (d0 < 0.0).then_some(-d0);
-    }
-    let inward = -g.normalize();
-    let (mut best, mut t, mut step) = (d0, 0.0, -0.25 * d0);
-    // Expanding steps while the distance deepens, halving past the deepest
-    // point: a bracketing line search to 0.1 % of the radius.
-    for _ in 0..200 {
-        let d = vessel.distance(&(p + inward * (t + step)));
-        if d < best {
-            best = d;
-            t += step;
-            step *= 1.5;
-        } else {
-            step *= 0.5;
-            if step < -1e-3 * best {
-                break;
-            }
-        }
-    }
-    Some(-best)
-}
 
 /// Default number of links.
 pub const DEFAULT_LINKS: usize = 40;

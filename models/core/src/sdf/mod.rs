@@ -46,7 +46,7 @@ mod voxel;
 pub use cubic::CubicVoxelSdf;
 pub use displaced::{DisplacedLumen, SHEPARD_FLOOR, WallSamples};
 pub use mesh::MeshSdf;
-pub use surface::level_surface;
+pub use surface::{level_surface, lumen_radius_at};
 pub use swept::*;
 pub use voxel::*;
 
