@@ -489,3 +489,38 @@ fn needle_diagnostics_fill_the_seeds_tables_2_and_3() {
         assert!(row.contains(cell), "{cell} missing from {row}");
     }
 }
+
+#[test]
+fn a_series_without_errors_is_named_relative_to_the_report() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let rows = common::rows();
+    common::write_series(dir, &rows);
+    // der's series with every error cell zero (a run whose reference is
+    // absent writes no positive error).
+    let der = rows
+        .iter()
+        .find(|r| r.model == "der" && r.segments == Some(80.0) && r.dt == Some(5e-4))
+        .unwrap();
+    let obs = dir.join(&der.run_dir).join("observables.csv");
+    let zeroed: String = fs::read_to_string(&obs)
+        .unwrap()
+        .lines()
+        .enumerate()
+        .map(|(i, l)| match i {
+            0 => format!("{l}\n"),
+            _ => format!("{},0\n", &l[..l.rfind(',').unwrap()]),
+        })
+        .collect();
+    fs::write(&obs, zeroed).unwrap();
+    render(dir, &rows, &common::info()).unwrap();
+    let md = read(&dir.join("report.md"));
+    let note = md
+        .lines()
+        .find(|l| l.contains("has no positive error sample"))
+        .unwrap_or_else(|| panic!("no note; report.md:\n{md}"));
+    // The report may be rendered in a staging folder and renamed: its own
+    // folder must not appear, the run's path relative to it must.
+    assert!(!note.contains(&dir.display().to_string()), "{note}");
+    assert!(note.contains("runs/cantilever-gravity/der/"), "{note}");
+}

@@ -51,10 +51,12 @@ pub(super) fn error_time_figure(dir: &Path, g: &Group, st: &Styles, sec: &mut Se
                 .collect();
         let skipped = s.t.len() - pts.len();
         if pts.is_empty() {
+            // Named relative to the report: `dir` may be the staging
+            // folder the report is renamed from.
             sec.notes.push(format!(
                 "Error over time: {} has no positive error sample in {} ({} samples).",
                 run_label(r),
-                path.display(),
+                Path::new(&r.run_dir).join("observables.csv").display(),
                 s.t.len()
             ));
             continue;
