@@ -193,14 +193,21 @@ impl From<String> for GateError {
 }
 
 /// Count instructions of `exe gate-workload ... --steps n` under callgrind.
-/// Valgrind's output and stderr go to files in the temporary folder, which
-/// are removed however the count ends; a signal to the gate kills valgrind
-/// ([`crate::child::spawn_with_limit`]).
+/// Valgrind's output and stderr go to files in the temporary folder, and
+/// its own temporaries (`valgrind_proc_<pid>_auxv`, ...) to a folder of
+/// the gate's there, all removed however the count ends; a signal to the
+/// gate kills valgrind ([`crate::child::spawn_with_limit`]). (Valgrind
+/// removes its temporaries itself shortly after it starts: one killed
+/// before that left its `auxv` file behind.)
 fn count(exe: &Path, w: &Workload, n: usize) -> Result<f64, GateError> {
     let stem = format!("surgbench-callgrind-{}-{n}", std::process::id());
     let out_file = std::env::temp_dir().join(format!("{stem}.out"));
     let err_file = std::env::temp_dir().join(format!("{stem}.stderr"));
+    let scratch = std::env::temp_dir().join(format!("{stem}.tmp"));
+    std::fs::create_dir_all(&scratch)
+        .map_err(|e| format!("cannot make valgrind's temporary folder {}: {e}", scratch.display()))?;
     let mut cmd = Command::new("valgrind");
+    cmd.env("TMPDIR", &scratch);
     // No gdbserver: its FIFOs in the temporary folder would outlive a
     // killed valgrind. It does not change the instructions counted.
     cmd.arg("--tool=callgrind")
@@ -225,6 +232,7 @@ fn count(exe: &Path, w: &Workload, n: usize) -> Result<f64, GateError> {
     let counted = read_count(waited, &out_file, &err_file, w);
     let _ = std::fs::remove_file(&out_file);
     let _ = std::fs::remove_file(&err_file);
+    let _ = std::fs::remove_dir_all(&scratch);
     counted
 }
 
