@@ -81,11 +81,14 @@ pub enum Capability {
     /// A rod whose lumen the harness replaces before every step (the
     /// tissue's current inner wall, in a coupled run).
     DeformableLumen,
+    /// A tissue made of several materials (`TissueBody::regions`: skin,
+    /// capsule, an inclusion).
+    MaterialRegions,
 }
 
 impl Capability {
     /// Every capability, in declaration order.
-    pub const ALL: [Capability; 20] = [
+    pub const ALL: [Capability; 21] = [
         Capability::Rod,
         Capability::Twist,
         Capability::TipForce,
@@ -106,6 +109,7 @@ impl Capability {
         Capability::HapticForce,
         Capability::SurfaceForces,
         Capability::DeformableLumen,
+        Capability::MaterialRegions,
     ];
 
     /// The capability called `name` ([`Capability::name`]), if any.
@@ -136,6 +140,7 @@ impl Capability {
             Capability::HapticForce => "hand force/torque for haptic rendering",
             Capability::SurfaceForces => "forces from an instrument on the tissue's contact surface",
             Capability::DeformableLumen => "a lumen replaced every step (a deforming vessel wall)",
+            Capability::MaterialRegions => "tissue of several materials (layers, inclusions)",
         }
     }
 
@@ -162,6 +167,7 @@ impl Capability {
             Capability::HapticForce => "haptic-force",
             Capability::SurfaceForces => "surface-forces",
             Capability::DeformableLumen => "deformable-lumen",
+            Capability::MaterialRegions => "material-regions",
         }
     }
 }

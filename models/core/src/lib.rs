@@ -54,7 +54,7 @@ pub use needle::NeedleTissue;
 pub use observation::{ContactObs, EnergyObs, Observation, RodObs, TissueObs};
 pub use scene::{
     Body, ContactParams, ControlKey, ControlTimeline, DeviceCommand, Environment, LoadRamp, RodBody, RodSection,
-    RodVelocity, Scene, Settle, SphereIndenter, TissueBody,
+    RodVelocity, Scene, Settle, SphereIndenter, TissueBody, TissueRegion,
 };
 pub use sdf::Sdf;
 pub use settings::{Choice, FidelityKey, KeyKind, Settings, Span};

@@ -160,20 +160,44 @@ pub fn block_mirrored(size: Vec3, cells: [usize; 3]) -> TetMesh {
 /// The lattice of [`block`], its cells split as [`split_lattice`] does.
 fn block_split(size: Vec3, cells: [usize; 3], mirror: bool) -> TetMesh {
     let c = cells.map(|n| n.max(1));
-    let (nx, ny, nz) = (c[0] + 1, c[1] + 1, c[2] + 1);
+    let planes: Vec<Vec<f64>> = (0..3)
+        .map(|a| (0..=c[a]).map(|i| size[a] * i as f64 / c[a] as f64).collect())
+        .collect();
+    lattice_block(&planes[0], &planes[1], &planes[2], mirror)
+}
+
+/// The box whose grid planes along x, y and z are at `x`, `y` and `z` (m,
+/// each strictly increasing, at least two): a graded lattice whose planes
+/// can follow material layers (a 1 mm skin, a 0.5 mm capsule). Cells are
+/// split as [`block_mirrored`] splits them, so the mesh is symmetric under
+/// reflection in a grid plane through nodes of even index when the planes
+/// are. Node `(i, j, k)` has index `i + x.len() * (j + y.len() * k)`.
+pub fn graded_block(x: &[f64], y: &[f64], z: &[f64]) -> Result<TetMesh, String> {
+    for (name, p) in [("x", x), ("y", y), ("z", z)] {
+        if p.len() < 2 || !p.iter().all(|v| v.is_finite()) || p.windows(2).any(|w| !(w[1] > w[0])) {
+            return Err(format!(
+                "graded block: the {name} planes must be at least two, finite and strictly increasing, got {p:?}"
+            ));
+        }
+    }
+    Ok(lattice_block(x, y, z, true))
+}
+
+/// The lattice with grid planes `x`, `y`, `z` (m), cells split as
+/// [`split_lattice`] does.
+fn lattice_block(x: &[f64], y: &[f64], z: &[f64], mirror: bool) -> TetMesh {
+    let (nx, ny, nz) = (x.len(), y.len(), z.len());
     let mut nodes = Vec::with_capacity(nx * ny * nz);
-    for k in 0..nz {
-        for j in 0..ny {
-            for i in 0..nx {
-                nodes.push(Vec3::new(
-                    size.x * i as f64 / c[0] as f64,
-                    size.y * j as f64 / c[1] as f64,
-                    size.z * k as f64 / c[2] as f64,
-                ));
+    for &zk in z {
+        for &yj in y {
+            for &xi in x {
+                nodes.push(Vec3::new(xi, yj, zk));
             }
         }
     }
-    let tets = split_lattice(&nodes, c, mirror, |i, j, k| i + nx * (j + ny * k));
+    let tets = split_lattice(&nodes, [nx - 1, ny - 1, nz - 1], mirror, |i, j, k| {
+        i + nx * (j + ny * k)
+    });
     TetMesh { nodes, tets }
 }
 
@@ -419,6 +443,29 @@ pub fn orient_positive(mesh: &mut TetMesh) -> usize {
     flipped
 }
 
+/// The tet of `mesh` containing `p` and the barycentric weights of `p` in
+/// it; for a point outside every tet (by more than round-off), the tet in
+/// which its smallest weight is largest (nearest, extrapolating). `None`
+/// only for a mesh without tets.
+pub fn locate(mesh: &TetMesh, p: &Vec3) -> Option<(usize, [f64; 4])> {
+    let mut best: Option<(usize, [f64; 4], f64)> = None;
+    for (e, t) in mesh.tets.iter().enumerate() {
+        let [a, b, c, d] = t.map(|i| mesh.nodes[i]);
+        let m = crate::Mat3::from_columns(&[b - a, c - a, d - a]);
+        let Some(inv) = m.try_inverse() else { continue };
+        let l = inv * (p - a);
+        let w = [1.0 - l.x - l.y - l.z, l.x, l.y, l.z];
+        let min = w.iter().copied().fold(f64::INFINITY, f64::min);
+        if best.as_ref().is_none_or(|b| min > b.2) {
+            best = Some((e, w, min));
+            if min >= 0.0 {
+                break;
+            }
+        }
+    }
+    best.map(|(e, w, _)| (e, w))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -473,6 +520,45 @@ mod tests {
         let plain = block(size, [4, 2, 2]);
         let set: std::collections::HashSet<[usize; 4]> = plain.tets.iter().map(|t| key(*t)).collect();
         assert!(!plain.tets.iter().all(|t| set.contains(&key(t.map(mirror_y)))));
+    }
+
+    #[test]
+    fn graded_block_follows_its_planes_and_mirrors_about_its_middle() {
+        // A 1 mm layer, then coarse cells; across, symmetric planes with a
+        // thin shell at +-5 mm (the prostate scene's layout, small).
+        let x = [0.0, 1e-3, 6e-3, 6.5e-3, 12e-3];
+        let y = [-12e-3, -5.5e-3, -5e-3, -2.5e-3, 0.0, 2.5e-3, 5e-3, 5.5e-3, 12e-3];
+        let m = graded_block(&x, &y, &y).unwrap();
+        m.validate().unwrap();
+        assert_eq!(m.nodes.len(), 5 * 9 * 9);
+        assert_eq!(m.tets.len(), 6 * 4 * 8 * 8);
+        let q = quality(&m);
+        assert_eq!(q.inverted, 0, "{q:?}");
+        let v = 12e-3 * 24e-3 * 24e-3;
+        assert!((q.volume - v).abs() < 1e-12 * v, "volume {} vs {v}", q.volume);
+        for (axis, planes) in [(0, &x[..]), (1, &y[..])] {
+            for &p in planes {
+                assert_eq!(nodes_on_plane(&m, axis, p, 1e-12).len(), m.nodes.len() / planes.len());
+            }
+        }
+        // Reflection y -> -y maps the tet set onto itself.
+        let key = |t: [usize; 4]| {
+            let mut k = t;
+            k.sort_unstable();
+            k
+        };
+        let set: std::collections::HashSet<[usize; 4]> = m.tets.iter().map(|t| key(*t)).collect();
+        let (nx, ny) = (x.len(), y.len());
+        let mirror_y = |n: usize| {
+            let (i, j, k) = (n % nx, (n / nx) % ny, n / (nx * ny));
+            i + nx * ((ny - 1 - j) + ny * k)
+        };
+        assert!(m.tets.iter().all(|t| set.contains(&key(t.map(mirror_y)))));
+        // Planes out of order, repeated or too few are refused.
+        assert!(graded_block(&[0.0, 1.0, 1.0], &y, &y).is_err());
+        assert!(graded_block(&[0.0], &y, &y).is_err());
+        assert!(graded_block(&[1.0, 0.0], &y, &y).is_err());
+        assert!(graded_block(&x, &y, &[0.0, f64::NAN]).is_err());
     }
 
     #[test]

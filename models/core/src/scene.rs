@@ -30,8 +30,12 @@ pub use crate::rod::{LoadRamp, RodBody, RodSection, RodVelocity, VelocitySample}
 pub struct TissueBody {
     /// The mesh at rest (m).
     pub mesh: TetMesh,
-    /// Material.
+    /// Material of every tet no region of [`TissueBody::regions`] claims.
     pub material: SolidMaterial,
+    /// Parts of the body made of another material (a skin layer, a capsule,
+    /// an inclusion); empty for a uniform body. Needs
+    /// [`Capability::MaterialRegions`].
+    pub regions: Vec<TissueRegion>,
     /// Nodes held fixed.
     pub fixed_nodes: Vec<usize>,
     /// Nodes driven to a displacement (m) by the end of the control ramp;
@@ -63,6 +67,21 @@ pub struct TissueBody {
     /// ([`TissueBody::start_velocities`]). Needs
     /// [`Capability::InitialVelocity`].
     pub initial_velocity: Vec<Vec3>,
+}
+
+/// A part of a tissue body made of its own material: the tets it claims.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TissueRegion {
+    /// Name for reports and errors (`skin`, `capsule`).
+    pub name: String,
+    /// Its material.
+    pub material: SolidMaterial,
+    /// Its tets (indices into the body's mesh); no tet is in two regions.
+    pub tets: Vec<usize>,
+    /// Force a needle tip needs to cut this region (N); `None`: the
+    /// needle interaction's own `cutting_force` (the seed's per-layer
+    /// `f_cut`: a membrane takes more than the tissue around it).
+    pub cutting_force: Option<f64>,
 }
 
 /// A rigid sphere in frictionless, unilateral contact with a tissue body:
@@ -110,6 +129,7 @@ impl TissueBody {
         Self {
             mesh,
             material,
+            regions: Vec::new(),
             fixed_nodes: Vec::new(),
             driven_nodes: Vec::new(),
             partial_fixed: Vec::new(),
@@ -118,6 +138,26 @@ impl TissueBody {
             contact_surface: Vec::new(),
             initial_velocity: Vec::new(),
         }
+    }
+
+    /// Every material of the body, [`TissueBody::material`] first then the
+    /// regions' in order, and each tet's index into that list (empty when
+    /// the body has no regions: every tet is of the first).
+    pub fn tet_materials(&self) -> (Vec<SolidMaterial>, Vec<usize>) {
+        let mut materials = vec![self.material];
+        materials.extend(self.regions.iter().map(|r| r.material));
+        if self.regions.is_empty() {
+            return (materials, Vec::new());
+        }
+        let mut of = vec![0; self.mesh.tets.len()];
+        for (k, r) in self.regions.iter().enumerate() {
+            for &t in &r.tets {
+                if let Some(m) = of.get_mut(t) {
+                    *m = k + 1;
+                }
+            }
+        }
+        (materials, of)
     }
 
     /// The velocity every node starts with (m/s): [`TissueBody::initial_velocity`]
@@ -468,6 +508,9 @@ impl Scene {
                     if t.indenter.is_some() {
                         c.push(Capability::TissueContact);
                     }
+                    if !t.regions.is_empty() {
+                        c.push(Capability::MaterialRegions);
+                    }
                     if !t.contact_surface.is_empty() {
                         c.push(Capability::SurfaceForces);
                     }
@@ -543,11 +586,43 @@ impl Scene {
                     if !t.initial_velocity.iter().all(|v| v.iter().all(|c| c.is_finite())) {
                         return Err("tissue initial velocity must be finite".into());
                     }
-                    let m = &t.material;
-                    let ok =
-                        m.youngs_modulus > 0.0 && m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5 && m.density > 0.0;
-                    if !ok {
-                        return Err(format!("bad tissue material {m:?}"));
+                    let bad_material = |m: &SolidMaterial| {
+                        !(m.youngs_modulus > 0.0
+                            && m.youngs_modulus.is_finite()
+                            && m.poisson_ratio > -1.0
+                            && m.poisson_ratio < 0.5
+                            && m.density > 0.0
+                            && m.density.is_finite())
+                    };
+                    if bad_material(&t.material) {
+                        return Err(format!("bad tissue material {:?}", t.material));
+                    }
+                    let mut claimed = vec![false; t.mesh.tets.len()];
+                    for r in &t.regions {
+                        if bad_material(&r.material) {
+                            return Err(format!("bad material {:?} of tissue region `{}`", r.material, r.name));
+                        }
+                        if r.cutting_force.is_some_and(|f| !(f >= 0.0 && f.is_finite())) {
+                            return Err(format!(
+                                "tissue region `{}`: cutting_force must be >= 0 N and finite, got {:?}",
+                                r.name, r.cutting_force
+                            ));
+                        }
+                        for &e in &r.tets {
+                            match claimed.get_mut(e) {
+                                None => {
+                                    return Err(format!(
+                                        "tissue region `{}` claims tet {e} but the mesh has {} tets",
+                                        r.name,
+                                        t.mesh.tets.len()
+                                    ));
+                                }
+                                Some(c) if *c => {
+                                    return Err(format!("tet {e} is in two tissue regions (the second: `{}`)", r.name));
+                                }
+                                Some(c) => *c = true,
+                            }
+                        }
                     }
                 }
             }
@@ -693,5 +768,54 @@ mod tests {
         assert!(s.validate().unwrap_err().contains("finite"));
         s.bodies = vec![Body::Tissue(block())];
         assert!(!s.required_capabilities().contains(&Capability::InitialVelocity));
+    }
+
+    /// Regions: each tet in one region at most, in range, with a valid
+    /// material and cutting force; the materials list puts the body's first.
+    #[test]
+    fn tissue_regions_are_checked_and_index_their_tets() {
+        let mut s = Scene::empty("r");
+        let mut b = block();
+        let stiff = SolidMaterial {
+            youngs_modulus: 5e3,
+            ..b.material
+        };
+        b.regions.push(TissueRegion {
+            name: "a".into(),
+            material: stiff,
+            tets: vec![0, 2],
+            cutting_force: Some(0.5),
+        });
+        let (mats, of) = b.tet_materials();
+        assert_eq!(mats, vec![b.material, stiff]);
+        assert_eq!(of.len(), b.mesh.tets.len());
+        assert_eq!((of[0], of[1], of[2]), (1, 0, 1));
+        s.bodies = vec![Body::Tissue(b.clone())];
+        s.validate().unwrap();
+        assert!(s.required_capabilities().contains(&Capability::MaterialRegions));
+        let region = |tets: Vec<usize>, cut: Option<f64>, e: f64| TissueRegion {
+            name: "b".into(),
+            material: SolidMaterial {
+                youngs_modulus: e,
+                ..stiff
+            },
+            tets,
+            cutting_force: cut,
+        };
+        for (r, msg) in [
+            (region(vec![2], None, 1e3), "two tissue regions"),
+            (region(vec![usize::MAX], None, 1e3), "claims tet"),
+            (region(vec![1], Some(-1.0), 1e3), "cutting_force"),
+            (region(vec![1], None, f64::INFINITY), "bad material"),
+        ] {
+            let mut bad = b.clone();
+            bad.regions.push(r);
+            s.bodies = vec![Body::Tissue(bad)];
+            let e = s.validate().unwrap_err();
+            assert!(e.contains(msg), "{e}");
+        }
+        s.bodies = vec![Body::Tissue(block())];
+        assert!(!s.required_capabilities().contains(&Capability::MaterialRegions));
+        assert!(block().tet_materials().1.is_empty());
     }
 }

@@ -42,8 +42,13 @@ pub struct Solid {
     pub elems: Elements,
     /// Block sparsity pattern.
     pub pat: Pattern,
-    /// Material law and Lamé parameters.
+    /// Material law and Lamé parameters of the body's own material (the
+    /// first of [`Solid::mats`]; every material shares its law).
     pub mat: Material,
+    /// Every material: the body's, then its regions' (`TissueBody::regions`).
+    mats: Vec<Material>,
+    /// Each tet's index into `mats`; empty when every tet is of the first.
+    tet_mat: Vec<usize>,
     /// Lumped nodal masses (kg): `rho V / 4` from each tet.
     pub mass: Vec<f64>,
     /// Rest stiffness per element (linear law), for warped / linear Jacobians.
@@ -61,36 +66,68 @@ pub struct Solid {
 impl Solid {
     /// Discretize `mesh` with `law`; `threads` worker threads for assembly.
     pub fn new(mesh: &TetMesh, material: &SolidMaterial, law: Law, threads: usize) -> Result<Self, FemError> {
+        Self::with_materials(mesh, std::slice::from_ref(material), &[], law, threads)
+    }
+
+    /// [`Solid::new`] for a body of several materials: tet `e` is made of
+    /// `materials[tet_material[e]]` (every tet of the first when
+    /// `tet_material` is empty), as `TissueBody::tet_materials` gives them.
+    pub fn with_materials(
+        mesh: &TetMesh,
+        materials: &[SolidMaterial],
+        tet_material: &[usize],
+        law: Law,
+        threads: usize,
+    ) -> Result<Self, FemError> {
         mesh.validate().map_err(FemError::BadInput)?;
-        let m = material;
-        if !(m.youngs_modulus > 0.0 && m.youngs_modulus.is_finite()) {
-            return Err(FemError::BadInput(format!(
-                "youngs_modulus must be > 0 Pa, got {}",
-                m.youngs_modulus
-            )));
+        if materials.is_empty() {
+            return Err(FemError::BadInput("no material".into()));
         }
-        if !(m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5) {
-            return Err(FemError::BadInput(format!(
-                "poisson_ratio must be in (-1, 0.5), got {}",
-                m.poisson_ratio
-            )));
-        }
-        if !(m.density > 0.0 && m.density.is_finite()) {
-            return Err(FemError::BadInput(format!(
-                "density must be > 0 kg/m^3, got {}",
-                m.density
-            )));
+        for m in materials {
+            if !(m.youngs_modulus > 0.0 && m.youngs_modulus.is_finite()) {
+                return Err(FemError::BadInput(format!(
+                    "youngs_modulus must be > 0 Pa, got {}",
+                    m.youngs_modulus
+                )));
+            }
+            if !(m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5) {
+                return Err(FemError::BadInput(format!(
+                    "poisson_ratio must be in (-1, 0.5), got {}",
+                    m.poisson_ratio
+                )));
+            }
+            if !(m.density > 0.0 && m.density.is_finite()) {
+                return Err(FemError::BadInput(format!(
+                    "density must be > 0 kg/m^3, got {}",
+                    m.density
+                )));
+            }
         }
         if mesh.tets.is_empty() {
             return Err(FemError::BadInput("mesh has no tets".into()));
         }
+        if !tet_material.is_empty()
+            && (tet_material.len() != mesh.tets.len() || tet_material.iter().any(|&k| k >= materials.len()))
+        {
+            return Err(FemError::BadInput(format!(
+                "tet materials: need one index below {} per tet ({} tets), got {} indices",
+                materials.len(),
+                mesh.tets.len(),
+                tet_material.len()
+            )));
+        }
         let elems = Elements::new(mesh).map_err(FemError::BadInput)?;
         let pat = Pattern::new(&mesh.nodes, &mesh.tets);
-        let mat = Material::new(law, m.youngs_modulus, m.poisson_ratio);
+        let mats: Vec<Material> = materials
+            .iter()
+            .map(|m| Material::new(law, m.youngs_modulus, m.poisson_ratio))
+            .collect();
+        let mat = mats[0];
+        let of = |e: usize| tet_material.get(e).copied().unwrap_or(0);
         let mut mass = vec![0.0; mesh.nodes.len()];
         for (e, t) in mesh.tets.iter().enumerate() {
             for &i in t {
-                mass[i] += m.density * elems.vol[e] / 4.0;
+                mass[i] += materials[of(e)].density * elems.vol[e] / 4.0;
             }
         }
         let pool = rayon::ThreadPoolBuilder::new()
@@ -100,7 +137,10 @@ impl Solid {
         let k0: Vec<UpperBlocks> = pool.install(|| {
             (0..elems.len())
                 .into_par_iter()
-                .map(|e| upper_of(&elems.rest_stiffness(mat.mu, mat.lambda, e)))
+                .map(|e| {
+                    let m = &mats[of(e)];
+                    upper_of(&elems.rest_stiffness(m.mu, m.lambda, e))
+                })
                 .collect()
         });
         let nan = M3::repeat(f64::NAN);
@@ -122,6 +162,8 @@ impl Solid {
             rest: mesh.nodes.clone(),
             elems,
             mat,
+            mats,
+            tet_mat: tet_material.to_vec(),
             mass,
             k0,
             state,
@@ -131,6 +173,11 @@ impl Solid {
             pat,
             pool,
         })
+    }
+
+    /// The material of tet `e`.
+    pub fn material_of(&self, e: usize) -> &Material {
+        &self.mats[self.tet_mat.get(e).copied().unwrap_or(0)]
     }
 
     /// Number of nodes.
@@ -149,13 +196,14 @@ impl Solid {
     /// the block was built (0 = always rebuild).
     pub fn evaluate(&mut self, x: &[Vec3], jac: Option<Jacobian>, lazy_threshold: f64) -> EvalStats {
         let elems = &self.elems;
-        let mat = self.mat;
+        let (mats, tet_mat) = (&self.mats, &self.tet_mat);
         let k0 = &self.k0;
         let state = &mut self.state;
         let pool = &self.pool;
         pool.install(|| {
             state.par_iter_mut().with_min_len(64).enumerate().for_each(|(e, s)| {
-                let (en, f, kin) = elems.energy_forces(&mat, e, x);
+                let mat = &mats[tet_mat.get(e).copied().unwrap_or(0)];
+                let (en, f, kin) = elems.energy_forces(mat, e, x);
                 s.f = f;
                 s.energy = en;
                 s.r = kin.r;
@@ -185,7 +233,7 @@ impl Solid {
                         s.k = if mat.law == Law::Linear {
                             k0[e]
                         } else {
-                            upper_of(&elems.stiffness(&mat, e, &kin))
+                            upper_of(&elems.stiffness(mat, e, &kin))
                         };
                         s.has_k = false;
                     }
@@ -193,7 +241,7 @@ impl Solid {
                         s.k = if mat.law == Law::Linear {
                             k0[e]
                         } else {
-                            upper_of(&project_psd(&elems.stiffness(&mat, e, &kin)))
+                            upper_of(&project_psd(&elems.stiffness(mat, e, &kin)))
                         };
                         s.has_k = false;
                     }
@@ -229,12 +277,19 @@ impl Solid {
     /// given in the rest configuration, integrated with the degree-2 rule
     /// [`QUAD4`] against the linear shape functions.
     pub fn body_loads(&self, b: &(dyn Fn(&Vec3) -> Vec3 + Sync)) -> Vec<Vec3> {
+        self.body_loads_by_tet(&|x, _| b(x))
+    }
+
+    /// [`Solid::body_loads`] of a density `b(X, e)` that also depends on
+    /// the tet `e` it is integrated over (gravity on a body of several
+    /// materials: `rho_e g`).
+    pub fn body_loads_by_tet(&self, b: &(dyn Fn(&Vec3, usize) -> Vec3 + Sync)) -> Vec<Vec3> {
         let mut out = vec![Vec3::zeros(); self.n_nodes()];
         for (e, t) in self.elems.tets.iter().enumerate() {
             let p = t.map(|i| self.rest[i]);
             for q in QUAD4 {
                 let xq = p[0] * q[0] + p[1] * q[1] + p[2] * q[2] + p[3] * q[3];
-                let bq = b(&xq) * (self.elems.vol[e] / 4.0);
+                let bq = b(&xq, e) * (self.elems.vol[e] / 4.0);
                 for a in 0..4 {
                     out[t[a]] += bq * q[a];
                 }
@@ -249,7 +304,7 @@ impl Solid {
         let mut e_sum = 0.0;
         let mut per: Vec<[Vec3; 4]> = Vec::with_capacity(self.elems.len());
         for e in 0..self.elems.len() {
-            let (en, f, _) = self.elems.energy_forces(&self.mat, e, x);
+            let (en, f, _) = self.elems.energy_forces(self.material_of(e), e, x);
             e_sum += en;
             per.push(f);
         }

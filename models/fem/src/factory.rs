@@ -151,6 +151,7 @@ impl ModelFactory for FemFactory {
             Capability::TissueContact,
             Capability::SurfaceForces,
             Capability::InitialVelocity,
+            Capability::MaterialRegions,
         ]
     }
     fn fidelity_keys(&self) -> &'static [FidelityKey] {

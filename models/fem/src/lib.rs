@@ -43,7 +43,7 @@ pub use dynamics::{DynParams, FemModel, Integrator, LinearStep, REUSE_TOL};
 pub use element::Jacobian;
 pub use factory::FemFactory;
 pub use material::{Law, Material};
-pub use statics::{Constraint, Loads, StaticInfo, StaticParams, pressure_loads, solve_static};
+pub use statics::{Constraint, Loads, StaticInfo, StaticParams, pressure_loads, solve_static, solve_static_materials};
 
 use std::fmt;
 use surgbench_core::{TetMesh, Vec3};

@@ -203,12 +203,35 @@ pub fn solve_static(
     loads: &Loads,
     params: &StaticParams,
 ) -> Result<StaticInfo, FemError> {
+    solve_static_materials(
+        mesh,
+        std::slice::from_ref(material),
+        &[],
+        law,
+        constraints,
+        loads,
+        params,
+    )
+}
+
+/// [`solve_static`] for a body of several materials: tet `e` is made of
+/// `materials[tet_material[e]]` (all of the first when `tet_material` is
+/// empty; `TissueBody::tet_materials` gives both).
+pub fn solve_static_materials(
+    mesh: &TetMesh,
+    materials: &[SolidMaterial],
+    tet_material: &[usize],
+    law: Law,
+    constraints: &[Constraint],
+    loads: &Loads,
+    params: &StaticParams,
+) -> Result<StaticInfo, FemError> {
     if params.load_steps == 0 || params.max_newton == 0 || !(params.tol > 0.0) {
         return Err(FemError::BadInput(format!(
             "StaticParams needs load_steps >= 1, max_newton >= 1, tol > 0: {params:?}"
         )));
     }
-    let mut solid = Solid::new(mesh, material, law, params.threads)?;
+    let mut solid = Solid::with_materials(mesh, materials, tet_material, law, params.threads)?;
     let n = solid.n_nodes();
     let (free, uc) = dof_conditions(n, constraints)?;
     let mut fext = vec![Vec3::zeros(); n];

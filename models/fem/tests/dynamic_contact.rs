@@ -27,6 +27,7 @@ fn body() -> TissueBody {
         initial_velocity: vec![],
         mesh: m,
         material: tissue(0.3),
+        regions: vec![],
     }
 }
 

@@ -32,6 +32,7 @@ fn block_body(n: usize, squash: f64) -> TissueBody {
         initial_velocity: vec![],
         mesh: m,
         material: tissue(0.3),
+        regions: vec![],
     }
 }
 
@@ -210,6 +211,7 @@ fn lazy_jacobian_trades_updates_for_accuracy() {
         initial_velocity: vec![],
         mesh: m,
         material: tissue(0.3),
+        regions: vec![],
     };
     let go = |thr: f64| {
         let p = DynParams {

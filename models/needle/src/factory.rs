@@ -83,6 +83,7 @@ impl ModelFactory for NeedleFactory {
             Capability::Insertion,
             Capability::Twist,
             Capability::PressureLoad,
+            Capability::MaterialRegions,
         ]
     }
     fn fidelity_keys(&self) -> &'static [FidelityKey] {
@@ -165,7 +166,27 @@ impl ModelFactory for NeedleFactory {
                 "applies to coupling=remesh only; embedded points change no mesh",
             ));
         }
-        let model = NeedleModel::new(fem, rod, tissue.mesh.tets.clone(), needle, spacing, dt).with_solver(solver);
+        let mut model = NeedleModel::new(fem, rod, tissue.mesh.tets.clone(), needle, spacing, dt).with_solver(solver);
+        if !tissue.regions.is_empty() {
+            if remesh {
+                return Err(BuildError::bad(
+                    "coupling",
+                    "coupling=remesh does not carry a layered tissue's regions (their materials and cutting forces) onto the tets it makes yet; use coupling=embedded",
+                ));
+            }
+            let (_, of) = tissue.tet_materials();
+            let cut: Vec<f64> = of
+                .iter()
+                .map(|&k| {
+                    match k {
+                        0 => None,
+                        k => tissue.regions[k - 1].cutting_force,
+                    }
+                    .unwrap_or(needle.cutting_force)
+                })
+                .collect();
+            model = model.with_cutting_forces(cut);
+        }
         if !remesh {
             return Ok(Box::new(model));
         }

@@ -159,6 +159,10 @@ pub struct NeedleModel {
     /// mesh's own).
     dihedral_built: [f64; 2],
     dihedral: [f64; 2],
+    /// The cutting force (N) in each tet (a layered body's per-region
+    /// `f_cut`, [`NeedleModel::with_cutting_forces`]); empty: the
+    /// interaction's `cutting_force` everywhere.
+    cut_of_tet: Vec<f64>,
 }
 
 /// The remeshed variant's state (issue 18): the remesher over the tissue's
@@ -265,8 +269,34 @@ impl NeedleModel {
             times: PhaseTimes::default(),
             dihedral_built: dihedral,
             dihedral,
+            cut_of_tet: Vec::new(),
         }
         .pre_inserted()
+    }
+
+    /// The same model with a cutting force per tet (N, one per tet of the
+    /// mesh it was built on): the seed's per-layer `f_cut`, large across a
+    /// membrane so that the tip tents it until the force reaches it, then
+    /// punctures. The tip cuts at the force of the tet its channel end lies
+    /// in. Embedded coupling only (tip remeshing renumbers the tets): the
+    /// caller checks both.
+    pub fn with_cutting_forces(mut self, per_tet: Vec<f64>) -> Self {
+        assert!(
+            per_tet.len() == self.tets.len() && self.remesh.is_none(),
+            "cutting forces: one per tet ({} tets, got {}), embedded coupling",
+            self.tets.len(),
+            per_tet.len()
+        );
+        self.cut_of_tet = per_tet;
+        self
+    }
+
+    /// The force (N) the tip needs to cut where its channel ends.
+    fn tip_cutting_force(&self) -> f64 {
+        match &self.tip {
+            Some(p) if !self.cut_of_tet.is_empty() => self.cut_of_tet[p.tissue.tet],
+            _ => self.coupling.cutting_force,
+        }
     }
 
     /// The same model with the seed's tip remeshing (issue 18): every
@@ -589,8 +619,9 @@ impl NeedleModel {
                 viscous: eta * l / self.dt,
             })
             .collect();
+        let cut = self.tip_cutting_force();
         if touching && let Some(tip) = out.last_mut() {
-            tip.forward += self.coupling.cutting_force;
+            tip.forward += cut;
         }
         out
     }
@@ -1169,6 +1200,16 @@ impl Model for NeedleModel {
         d.insert("lcp_unresolved_steps".into(), s.unresolved as f64);
         d.insert("tip_fallback_steps".into(), s.tip_fallbacks as f64);
         d.insert("tip_lost".into(), s.tip_lost as f64);
+        // Where the tip cuts, in the tissue's rest coordinates (m), and the
+        // force that takes there (N): which layer of a layered body it is in.
+        if let Some(p) = &self.tip {
+            let t = self.tets[p.tissue.tet];
+            let x: Vec3 = (0..4).map(|a| self.fem.rest_position(t[a]) * p.tissue.w[a]).sum();
+            d.insert("tip_rest_x_m".into(), x.x);
+            d.insert("tip_rest_y_m".into(), x.y);
+            d.insert("tip_rest_z_m".into(), x.z);
+            d.insert("tip_cutting_force_n".into(), self.tip_cutting_force());
+        }
         // The seed's Table 2: mean wall time per step of each phase (ms;
         // timings, not results: they change from run to run).
         let steps = s.all_steps.max(1) as f64;

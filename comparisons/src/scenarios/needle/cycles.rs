@@ -160,12 +160,7 @@ fn build(p: &CyclesParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
     }
     let gel = [p.youngs_modulus, p.poisson_ratio, p.density];
     let (_, tissue) = held_block(id, level, p.block_length, p.block_width, gel)?;
-    let needle = needle(
-        p.needle_length,
-        p.needle_radius,
-        p.needle_youngs_modulus,
-        -p.tip_gap - p.needle_length,
-    );
+    let needle = needle(p.needle_length, p.needle_radius, p.needle_youngs_modulus, -p.tip_gap);
     let x_in = p.tip_gap + p.depth;
     let leg = x_in / p.insertion_speed;
     let mut feed = vec![(0.0, 0.0)];

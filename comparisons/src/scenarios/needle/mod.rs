@@ -14,11 +14,13 @@
 //! force the needle exerts on the hand: the hand pushes with its negative.
 
 mod cycles;
+mod prostate;
 mod steering;
 mod stick_slip;
 mod straight;
 
 pub use cycles::{CyclesParams, NEEDLE_CYCLES};
+pub use prostate::{PROSTATE_LAYERS, ProstateParams};
 pub use steering::{BevelParams, DoubleBendParams, NEEDLE_BEVEL, NEEDLE_DOUBLE_BEND};
 pub use stick_slip::{NEEDLE_STICK_SLIP, StickSlipParams};
 pub use straight::{NEEDLE_STRAIGHT, StraightParams};
@@ -100,6 +102,7 @@ pub fn all() -> Vec<&'static dyn Scenario> {
         &NEEDLE_CYCLES,
         &NEEDLE_BEVEL,
         &NEEDLE_DOUBLE_BEND,
+        &PROSTATE_LAYERS,
     ]
 }
 
@@ -206,10 +209,11 @@ fn needle_scene(
 }
 
 /// A steel needle (Poisson ratio 0.3, 7,850 kg/m^3) of `length` and
-/// `radius` (m), Young's modulus `youngs` (Pa), along +x with its base (the
-/// guide sleeve) at `x = base_x` (m).
-fn needle(length: f64, radius: f64, youngs: f64, base_x: f64) -> RodBody {
+/// `radius` (m), Young's modulus `youngs` (Pa), along +x with its tip at
+/// `x = tip_x` (m; negative: outside the entry face) and its base (the
+/// guide sleeve) `length` behind it.
+fn needle(length: f64, radius: f64, youngs: f64, tip_x: f64) -> RodBody {
     let mut rod = RodBody::uniform(length, radius, youngs, 0.3, 7850.0);
-    rod.base = Iso3::translation(base_x, 0.0, 0.0);
+    rod.base = Iso3::translation(tip_x - length, 0.0, 0.0);
     rod
 }

@@ -519,7 +519,7 @@ impl Steering {
             self.needle_length,
             self.needle_radius,
             self.needle_youngs,
-            -self.tip_gap - self.needle_length,
+            -self.tip_gap,
         );
         let t_end = x_in / self.speed;
         let interaction = NeedleTissue {

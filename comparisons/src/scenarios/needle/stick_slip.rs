@@ -181,12 +181,7 @@ fn build(p: &StickSlipParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError
         .filter(|f| f.iter().all(|&i| block.mesh.nodes[i].x.abs() < block.tol))
         .map(|f| (f, pressure))
         .collect();
-    let needle = needle(
-        p.needle_length,
-        p.needle_radius,
-        p.needle_youngs_modulus,
-        p.depth - p.needle_length,
-    );
+    let needle = needle(p.needle_length, p.needle_radius, p.needle_youngs_modulus, p.depth);
     let mut scene = Scene::empty(id);
     scene.bodies = vec![needle.into(), Body::Tissue(tissue)];
     scene.duration = p.ramp_time;

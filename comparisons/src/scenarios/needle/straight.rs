@@ -201,12 +201,7 @@ fn build(p: &StraightParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError>
     }
     let gel = [p.youngs_modulus, p.poisson_ratio, p.density];
     let (block, tissue) = held_block(id, level, p.block_length, p.block_width, gel)?;
-    let needle = needle(
-        p.needle_length,
-        p.needle_radius,
-        p.needle_youngs_modulus,
-        -p.tip_gap - p.needle_length,
-    );
+    let needle = needle(p.needle_length, p.needle_radius, p.needle_youngs_modulus, -p.tip_gap);
     let v = p.insertion_speed;
     let x_in = p.tip_gap + p.depth;
     let t_insert = x_in / v;

@@ -49,7 +49,8 @@ pub use block_vibration::{BLOCK_VIBRATION, BlockVibrationParams, vibration_cells
 pub use lame_tube::{LAME_TUBE, LameParams};
 pub use patch_test::{PATCH_TEST, PatchParams};
 pub use sphere_indentation::{SPHERE_DT, SPHERE_INDENTATION, SphereParams, sphere_block_mesh, sphere_grading};
-pub use truth_cube::{CubeFrame, TRUTH_CUBE, TRUTH_CUBE_EDGE, TruthParams, locate};
+pub use surgbench_core::mesh::locate;
+pub use truth_cube::{CubeFrame, TRUTH_CUBE, TRUTH_CUBE_EDGE, TruthParams};
 pub use volume_preservation::{VOLUME_PRESERVATION, VolumeParams, squash_twist};
 pub use wall_indentation::{WALL_INDENTATION, WallParams, wall_sphere_cells, wall_sphere_mesh};
 pub use wall_punch::{FOOTPRINT_TOL, PunchParams, WALL_PUNCH, wall_cells, wall_clamped, wall_footprint, wall_mesh};

@@ -99,29 +99,6 @@ impl CubeFrame {
     }
 }
 
-/// The tet of `mesh` containing `p` and the barycentric weights of `p` in
-/// it; for a point outside every tet (by more than round-off), the tet in
-/// which its smallest weight is largest (nearest, extrapolating). `None`
-/// only for a mesh without tets.
-pub fn locate(mesh: &TetMesh, p: &Vec3) -> Option<(usize, [f64; 4])> {
-    let mut best: Option<(usize, [f64; 4], f64)> = None;
-    for (e, t) in mesh.tets.iter().enumerate() {
-        let [a, b, c, d] = t.map(|i| mesh.nodes[i]);
-        let m = Mat3::from_columns(&[b - a, c - a, d - a]);
-        let Some(inv) = m.try_inverse() else { continue };
-        let l = inv * (p - a);
-        let w = [1.0 - l.x - l.y - l.z, l.x, l.y, l.z];
-        let min = w.iter().copied().fold(f64::INFINITY, f64::min);
-        if best.as_ref().is_none_or(|b| min > b.2) {
-            best = Some((e, w, min));
-            if min >= 0.0 {
-                break;
-            }
-        }
-    }
-    best.map(|(e, w, _)| (e, w))
-}
-
 params! {
     /// Parameters of `truth-cube`.
     ///

@@ -327,7 +327,8 @@ impl FemModel {
             nodes: body.mesh.nodes.iter().map(|p| p - origin).collect(),
             tets: body.mesh.tets.clone(),
         };
-        let solid = Solid::new(&local, &body.material, p.law, p.threads)?;
+        let (materials, tet_material) = body.tet_materials();
+        let solid = Solid::with_materials(&local, &materials, &tet_material, p.law, p.threads)?;
         let n = solid.n_nodes();
         let mut cons: Vec<Constraint> = body.fixed_nodes.iter().map(|&i| Constraint::fixed(i)).collect();
         cons.extend(body.partial_fixed.iter().map(|&(i, axes)| Constraint {
@@ -344,8 +345,9 @@ impl FemModel {
         }
         cons.extend(body.driven_nodes.iter().map(|&(i, d)| Constraint::displaced(i, d)));
         let (free, uc) = dof_conditions(n, &cons)?;
-        let rho = body.material.density;
-        let gravity_load = solid.body_loads(&move |_: &Vec3| gravity * rho);
+        let rho: Vec<f64> = materials.iter().map(|m| m.density).collect();
+        let gravity_load =
+            solid.body_loads_by_tet(&|_: &Vec3, e| gravity * rho[tet_material.get(e).copied().unwrap_or(0)]);
         let mut sys = System::new(&solid.pat, free);
         sys.set_single_precision_preconditioner(p.reuse_f32);
         let x = solid.rest.clone();
@@ -444,6 +446,11 @@ impl FemModel {
     /// Current node positions (m, world coordinates).
     pub fn positions(&self) -> Vec<Vec3> {
         self.x.iter().map(|p| p + self.origin).collect()
+    }
+
+    /// Rest position (m, world coordinates) of node `i`.
+    pub fn rest_position(&self, i: usize) -> Vec3 {
+        self.solid.rest[i] + self.origin
     }
 
     /// Non-zeros of the Cholesky factor (after the first factorization).
