@@ -100,6 +100,8 @@ struct ProstateRef {
     layers: Layers,
     /// `f_cut` of skin and capsule (N).
     membrane_cut: [f64; 2],
+    /// `f_cut` elsewhere (N).
+    cut: f64,
     /// Coulomb plus viscous friction per length while sliding at `v` (N/m).
     friction: f64,
     entry: usize,
@@ -117,6 +119,9 @@ struct ProstateScorer<'a> {
     peak: [Option<(f64, f64, f64)>; 2],
     /// The tip's rest position at the last step (m), if inside the tissue.
     tip_rest: Option<Vec3>,
+    /// The last step's time (s), push (N) and the bound of the tissue the
+    /// tip cuts, `f_cut + (f_perlen + eta v) d` (N).
+    last_point: Option<(f64, f64, f64)>,
 }
 
 impl ProstateScorer<'_> {
@@ -144,16 +149,30 @@ impl Scorer for ProstateScorer<'_> {
             return;
         };
         self.tip_rest = self.rest_of(obs, &tip);
+        self.last_point = None;
         let Some(rest) = self.tip_rest else { return };
-        let Some(k) = self.r.layers.membrane_at(&rest, FACE_SLACK) else {
-            return;
-        };
         let push = -obs.hand_force.x;
         let d = (tip.x - entry.x).max(0.0);
+        let membrane = self.r.layers.membrane_at(&rest, FACE_SLACK);
+        let cut = membrane.map_or(self.r.cut, |k| self.r.membrane_cut[k]);
+        self.last_point = Some((obs.time, push, cut + self.r.friction * d));
+        let Some(k) = membrane else {
+            return;
+        };
         let closed = self.r.membrane_cut[k] + self.r.friction * d;
         if self.peak[k].is_none_or(|(p, _, _)| push > p) {
             self.peak[k] = Some((push, closed, tip.x));
         }
+    }
+
+    /// The push against the bound of the tissue the tip cuts, at every step
+    /// with the tip in the tissue: the push reaches it while every point
+    /// slides and stays under it while the tip tents a membrane (the
+    /// report's force-over-time plot shows the spikes against it).
+    fn force_point(&self, obs: &Observation) -> Option<(f64, f64)> {
+        self.last_point
+            .filter(|(t, _, _)| *t == obs.time)
+            .map(|(_, push, bound)| (push, bound))
     }
 
     fn score(&self, obs: &Observation) -> Metrics {
@@ -194,6 +213,7 @@ impl Reference for ProstateRef {
             mesh,
             peak: [None, None],
             tip_rest: None,
+            last_point: None,
         })
     }
 }
@@ -359,6 +379,7 @@ fn build(p: &ProstateParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError>
     let reference = ProstateRef {
         layers,
         membrane_cut: [p.skin_cutting_force, p.capsule_cutting_force],
+        cut: p.cutting_force,
         friction,
         entry,
         target: Vec3::new(p.prostate_depth, 0.0, 0.0),
