@@ -168,12 +168,6 @@ impl ModelFactory for NeedleFactory {
         }
         let mut model = NeedleModel::new(fem, rod, tissue.mesh.tets.clone(), needle, spacing, dt).with_solver(solver);
         if !tissue.regions.is_empty() {
-            if remesh {
-                return Err(BuildError::bad(
-                    "coupling",
-                    "coupling=remesh does not carry a layered tissue's regions (their materials and cutting forces) onto the tets it makes yet; use coupling=embedded",
-                ));
-            }
             let (_, of) = tissue.tet_materials();
             let cut: Vec<f64> = of
                 .iter()

@@ -64,6 +64,7 @@ pub mod factory;
 pub mod lcp;
 pub mod model;
 pub mod pcg;
+pub mod regions;
 pub mod remesh;
 pub mod reparam;
 

@@ -8,6 +8,7 @@
 use crate::coupling::{Embedded, OnNeedle, frame, locate, locate_within, on_needle};
 use crate::lcp::{self, Bounds, Solution, State};
 use crate::pcg::{self, Row};
+use crate::regions::BuiltLabels;
 use crate::remesh::{Place, Remesher, carry_over};
 use nalgebra::DMatrix;
 use std::collections::BTreeMap;
@@ -195,6 +196,10 @@ struct Remeshing {
     /// The farthest (m, material coordinates) the tip's node moved in one
     /// step.
     tip_jump_max: f64,
+    /// A layered tissue's labels as built, to label the tets operations
+    /// make, and the cutting force (N) of each material index (the body's
+    /// first, then its regions'); `None` for a uniform tissue.
+    labels: Option<(BuiltLabels, Vec<f64>)>,
 }
 
 /// The dihedral range (deg) of `mesh` (the remesher's, at rest) given that
@@ -278,12 +283,12 @@ impl NeedleModel {
     /// mesh it was built on): the seed's per-layer `f_cut`, large across a
     /// membrane so that the tip tents it until the force reaches it, then
     /// punctures. The tip cuts at the force of the tet its channel end lies
-    /// in. Embedded coupling only (tip remeshing renumbers the tets): the
-    /// caller checks both.
+    /// in. Before [`NeedleModel::with_remeshing`], which carries them onto
+    /// the tets it makes from the body's regions; the caller checks both.
     pub fn with_cutting_forces(mut self, per_tet: Vec<f64>) -> Self {
         assert!(
             per_tet.len() == self.tets.len() && self.remesh.is_none(),
-            "cutting forces: one per tet ({} tets, got {}), embedded coupling",
+            "cutting forces: one per tet ({} tets, got {}), before remeshing",
             self.tets.len(),
             per_tet.len()
         );
@@ -316,6 +321,15 @@ impl NeedleModel {
                 .chain(body.partial_fixed.iter().map(|p| p.0)),
         );
         remesher.set_max_offset(max_offset);
+        let labels = (!body.regions.is_empty()).then(|| {
+            let mut cuts = vec![self.coupling.cutting_force];
+            cuts.extend(
+                body.regions
+                    .iter()
+                    .map(|r| r.cutting_force.unwrap_or(self.coupling.cutting_force)),
+            );
+            (BuiltLabels::new(&body), cuts)
+        });
         self.remesh = Some(Remeshing {
             remesher,
             body,
@@ -328,6 +342,7 @@ impl NeedleModel {
             released: 0.0,
             energy_jump_max: 0.0,
             tip_jump_max: 0.0,
+            labels,
         });
         self.realize()?;
         Ok(self)
@@ -478,6 +493,11 @@ impl NeedleModel {
         let f = carry_over(&rm.body.mesh.nodes, &rm.body.mesh.tets, &mesh.nodes, &[&xt, v, a])
             .map_err(|e| fail(format!("tip remeshing: {e}")))?;
         rm.body.mesh = mesh;
+        if let Some((built, cuts)) = &rm.labels {
+            let labels = built.labels(&rm.body.mesh);
+            BuiltLabels::relabel(&mut rm.body, &labels);
+            self.cut_of_tet = labels.iter().map(|&k| cuts[k]).collect();
+        }
         let mesh = &rm.body.mesh;
         let before = self.fem.elastic_energy();
         self.fem = self
