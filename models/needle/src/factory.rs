@@ -168,18 +168,7 @@ impl ModelFactory for NeedleFactory {
         }
         let mut model = NeedleModel::new(fem, rod, tissue.mesh.tets.clone(), needle, spacing, dt).with_solver(solver);
         if !tissue.regions.is_empty() {
-            let (_, of) = tissue.tet_materials();
-            let cut: Vec<f64> = of
-                .iter()
-                .map(|&k| {
-                    match k {
-                        0 => None,
-                        k => tissue.regions[k - 1].cutting_force,
-                    }
-                    .unwrap_or(needle.cutting_force)
-                })
-                .collect();
-            model = model.with_cutting_forces(cut);
+            model = model.with_layers(tissue);
         }
         if !remesh {
             return Ok(Box::new(model));

@@ -161,9 +161,13 @@ pub struct NeedleModel {
     dihedral_built: [f64; 2],
     dihedral: [f64; 2],
     /// The cutting force (N) in each tet (a layered body's per-region
-    /// `f_cut`, [`NeedleModel::with_cutting_forces`]); empty: the
-    /// interaction's `cutting_force` everywhere.
+    /// `f_cut`, [`NeedleModel::with_layers`]); empty: the interaction's
+    /// `cutting_force` everywhere.
     cut_of_tet: Vec<f64>,
+    /// The cutting force (N) of each material index of a layered body
+    /// (`TissueBody::tet_materials`: the body's first, then its regions');
+    /// empty for a uniform one.
+    material_cuts: Vec<f64>,
 }
 
 /// The remeshed variant's state (issue 18): the remesher over the tissue's
@@ -197,9 +201,8 @@ struct Remeshing {
     /// step.
     tip_jump_max: f64,
     /// A layered tissue's labels as built, to label the tets operations
-    /// make, and the cutting force (N) of each material index (the body's
-    /// first, then its regions'); `None` for a uniform tissue.
-    labels: Option<(BuiltLabels, Vec<f64>)>,
+    /// make; `None` for a uniform tissue.
+    labels: Option<BuiltLabels>,
 }
 
 /// The dihedral range (deg) of `mesh` (the remesher's, at rest) given that
@@ -275,24 +278,32 @@ impl NeedleModel {
             dihedral_built: dihedral,
             dihedral,
             cut_of_tet: Vec::new(),
+            material_cuts: Vec::new(),
         }
         .pre_inserted()
     }
 
-    /// The same model with a cutting force per tet (N, one per tet of the
-    /// mesh it was built on): the seed's per-layer `f_cut`, large across a
-    /// membrane so that the tip tents it until the force reaches it, then
-    /// punctures. The tip cuts at the force of the tet its channel end lies
-    /// in. Before [`NeedleModel::with_remeshing`], which carries them onto
-    /// the tets it makes from the body's regions; the caller checks both.
-    pub fn with_cutting_forces(mut self, per_tet: Vec<f64>) -> Self {
+    /// The same model on the layered tissue `body` (the one it was built
+    /// from): each tet cuts at its region's force (N; the interaction's
+    /// `cutting_force` where a region gives none), the seed's per-layer
+    /// `f_cut`, large across a membrane so that the tip tents it until the
+    /// force reaches it, then punctures. The tip cuts at the force of the
+    /// tet its channel end lies in. Before [`NeedleModel::with_remeshing`],
+    /// which carries the regions onto the tets it makes; the caller checks
+    /// that the body is the model's.
+    pub fn with_layers(mut self, body: &TissueBody) -> Self {
         assert!(
-            per_tet.len() == self.tets.len() && self.remesh.is_none(),
-            "cutting forces: one per tet ({} tets, got {}), before remeshing",
+            body.mesh.tets.len() == self.tets.len() && self.remesh.is_none(),
+            "layers: the body the model was built from ({} tets, got {}), before remeshing",
             self.tets.len(),
-            per_tet.len()
+            body.mesh.tets.len()
         );
-        self.cut_of_tet = per_tet;
+        let base = self.coupling.cutting_force;
+        self.material_cuts = std::iter::once(base)
+            .chain(body.regions.iter().map(|r| r.cutting_force.unwrap_or(base)))
+            .collect();
+        let (_, of) = body.tet_materials();
+        self.cut_of_tet = of.iter().map(|&k| self.material_cuts[k]).collect();
         self
     }
 
@@ -321,15 +332,7 @@ impl NeedleModel {
                 .chain(body.partial_fixed.iter().map(|p| p.0)),
         );
         remesher.set_max_offset(max_offset);
-        let labels = (!body.regions.is_empty()).then(|| {
-            let mut cuts = vec![self.coupling.cutting_force];
-            cuts.extend(
-                body.regions
-                    .iter()
-                    .map(|r| r.cutting_force.unwrap_or(self.coupling.cutting_force)),
-            );
-            (BuiltLabels::new(&body), cuts)
-        });
+        let labels = (!body.regions.is_empty()).then(|| BuiltLabels::new(&body));
         self.remesh = Some(Remeshing {
             remesher,
             body,
@@ -493,10 +496,10 @@ impl NeedleModel {
         let f = carry_over(&rm.body.mesh.nodes, &rm.body.mesh.tets, &mesh.nodes, &[&xt, v, a])
             .map_err(|e| fail(format!("tip remeshing: {e}")))?;
         rm.body.mesh = mesh;
-        if let Some((built, cuts)) = &rm.labels {
+        if let Some(built) = &rm.labels {
             let labels = built.labels(&rm.body.mesh);
             BuiltLabels::relabel(&mut rm.body, &labels);
-            self.cut_of_tet = labels.iter().map(|&k| cuts[k]).collect();
+            self.cut_of_tet = labels.iter().map(|&k| self.material_cuts[k]).collect();
         }
         let mesh = &rm.body.mesh;
         let before = self.fem.elastic_energy();

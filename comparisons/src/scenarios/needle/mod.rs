@@ -154,9 +154,7 @@ impl GelBlock {
             x.z -= 0.5 * width;
         }
         let tol = 1e-9 * length;
-        let entry = (0..mesh.nodes.len())
-            .find(|&i| mesh.nodes[i].norm() < tol)
-            .ok_or_else(|| UsageError(format!("{scenario}: no mesh node on the needle axis at the entry")))?;
+        let entry = entry_node(scenario, &mesh, tol)?;
         let [youngs_modulus, poisson_ratio, density] = gel;
         let material = SolidMaterial {
             youngs_modulus,
@@ -170,6 +168,14 @@ impl GelBlock {
             tol,
         })
     }
+}
+
+/// The mesh node at the entry on the needle's axis (the origin, within
+/// `tol` m).
+fn entry_node(scenario: &str, mesh: &TetMesh, tol: f64) -> Result<usize, UsageError> {
+    (0..mesh.nodes.len())
+        .find(|&i| mesh.nodes[i].norm() < tol)
+        .ok_or_else(|| UsageError(format!("{scenario}: no mesh node on the needle axis at the entry")))
 }
 
 /// The gel block of [`GelBlock::new`] held at its far face

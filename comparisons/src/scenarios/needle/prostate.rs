@@ -79,9 +79,10 @@ struct Layers {
 }
 
 impl Layers {
-    /// The layer holding the rest point `p` (with `slack` around the
-    /// membranes): 0 skin, 1 capsule, `None` neither.
-    fn membrane_at(&self, p: &Vec3, slack: f64) -> Option<usize> {
+    /// The layer holding the rest point `p`, the membranes widened by
+    /// `slack` on both faces: 0 skin, 1 capsule, 2 gland, `None` the soft
+    /// tissue around them.
+    fn layer_at(&self, p: &Vec3, slack: f64) -> Option<usize> {
         if p.x <= self.skin + slack {
             return Some(0);
         }
@@ -91,7 +92,16 @@ impl Layers {
         let c = self.capsule;
         let inside_inner =
             p.x > lo + c + slack && p.x < hi - c - slack && p.y.abs() < h - c - slack && p.z.abs() < h - c - slack;
-        (inside_outer && !inside_inner).then_some(1)
+        match (inside_outer, inside_inner) {
+            (_, true) => Some(2),
+            (true, false) => Some(1),
+            (false, false) => None,
+        }
+    }
+
+    /// [`Layers::layer_at`] for the membranes only: 0 skin, 1 capsule.
+    fn membrane_at(&self, p: &Vec3, slack: f64) -> Option<usize> {
+        self.layer_at(p, slack).filter(|&k| k < 2)
     }
 }
 
@@ -155,13 +165,12 @@ impl Scorer for ProstateScorer<'_> {
         let d = (tip.x - entry.x).max(0.0);
         let membrane = self.r.layers.membrane_at(&rest, FACE_SLACK);
         let cut = membrane.map_or(self.r.cut, |k| self.r.membrane_cut[k]);
-        self.last_point = Some((obs.time, push, cut + self.r.friction * d));
-        let Some(k) = membrane else {
-            return;
-        };
-        let closed = self.r.membrane_cut[k] + self.r.friction * d;
-        if self.peak[k].is_none_or(|(p, _, _)| push > p) {
-            self.peak[k] = Some((push, closed, tip.x));
+        let bound = cut + self.r.friction * d;
+        self.last_point = Some((obs.time, push, bound));
+        if let Some(k) = membrane
+            && self.peak[k].is_none_or(|(p, _, _)| push > p)
+        {
+            self.peak[k] = Some((push, bound, tip.x));
         }
     }
 
@@ -309,9 +318,7 @@ fn build(p: &ProstateParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError>
     }
     let mesh = layered_mesh(p, level, &layers)?;
     let tol = 1e-9 * p.block_length;
-    let entry = (0..mesh.nodes.len())
-        .find(|&i| mesh.nodes[i].norm() < tol)
-        .ok_or_else(|| UsageError(format!("{id}: no mesh node on the needle axis at the entry")))?;
+    let entry = entry_node(id, &mesh, tol)?;
     let soft = SolidMaterial {
         youngs_modulus: p.youngs_modulus,
         poisson_ratio: p.poisson_ratio,
@@ -323,22 +330,14 @@ fn build(p: &ProstateParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError>
     };
     // Each tet to its layer by its centroid: the grid planes follow the
     // layer faces, so no tet straddles one.
-    let (mut skin, mut capsule, mut gland) = (Vec::new(), Vec::new(), Vec::new());
+    let mut of_layer = [Vec::new(), Vec::new(), Vec::new()];
     for (e, t) in mesh.tets.iter().enumerate() {
         let c = t.iter().map(|&i| mesh.nodes[i]).sum::<Vec3>() / 4.0;
-        match layers.membrane_at(&c, 0.0) {
-            Some(0) => skin.push(e),
-            Some(_) => capsule.push(e),
-            None if c.x > layers.capsule_x[0]
-                && c.x < layers.capsule_x[1]
-                && c.y.abs() < layers.capsule_half
-                && c.z.abs() < layers.capsule_half =>
-            {
-                gland.push(e)
-            }
-            None => {}
+        if let Some(k) = layers.layer_at(&c, 0.0) {
+            of_layer[k].push(e);
         }
     }
+    let [skin, capsule, gland] = of_layer;
     let mut tissue = TissueBody::new(mesh, soft);
     tissue.fixed_nodes = mesh::nodes_on_plane(&tissue.mesh, 0, p.block_length, tol);
     tissue.regions = vec![
