@@ -448,9 +448,15 @@ pub fn orient_positive(mesh: &mut TetMesh) -> usize {
 /// which its smallest weight is largest (nearest, extrapolating). `None`
 /// only for a mesh without tets.
 pub fn locate(mesh: &TetMesh, p: &Vec3) -> Option<(usize, [f64; 4])> {
+    locate_in(&mesh.nodes, &mesh.tets, p)
+}
+
+/// [`locate`] in the tets `tets` over the positions `nodes` (a deformed
+/// state of a mesh, without copying it into a [`TetMesh`]).
+pub fn locate_in(nodes: &[Vec3], tets: &[[usize; 4]], p: &Vec3) -> Option<(usize, [f64; 4])> {
     let mut best: Option<(usize, [f64; 4], f64)> = None;
-    for (e, t) in mesh.tets.iter().enumerate() {
-        let [a, b, c, d] = t.map(|i| mesh.nodes[i]);
+    for (e, t) in tets.iter().enumerate() {
+        let [a, b, c, d] = t.map(|i| nodes[i]);
         let m = crate::Mat3::from_columns(&[b - a, c - a, d - a]);
         let Some(inv) = m.try_inverse() else { continue };
         let l = inv * (p - a);

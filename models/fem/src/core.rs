@@ -63,6 +63,12 @@ pub struct Solid {
     pool: rayon::ThreadPool,
 }
 
+/// Index of tet `e`'s material under the per-tet indices `tet_material`
+/// (empty: every tet is made of the first material).
+fn material_index(tet_material: &[usize], e: usize) -> usize {
+    tet_material.get(e).copied().unwrap_or(0)
+}
+
 impl Solid {
     /// Discretize `mesh` with `law`; `threads` worker threads for assembly.
     pub fn new(mesh: &TetMesh, material: &SolidMaterial, law: Law, threads: usize) -> Result<Self, FemError> {
@@ -123,7 +129,7 @@ impl Solid {
             .map(|m| Material::new(law, m.youngs_modulus, m.poisson_ratio))
             .collect();
         let mat = mats[0];
-        let of = |e: usize| tet_material.get(e).copied().unwrap_or(0);
+        let of = |e: usize| material_index(tet_material, e);
         let mut mass = vec![0.0; mesh.nodes.len()];
         for (e, t) in mesh.tets.iter().enumerate() {
             for &i in t {
@@ -175,9 +181,15 @@ impl Solid {
         })
     }
 
+    /// Index of tet `e`'s material in the materials the solid was built
+    /// with.
+    pub fn material_index(&self, e: usize) -> usize {
+        material_index(&self.tet_mat, e)
+    }
+
     /// The material of tet `e`.
     pub fn material_of(&self, e: usize) -> &Material {
-        &self.mats[self.tet_mat.get(e).copied().unwrap_or(0)]
+        &self.mats[self.material_index(e)]
     }
 
     /// Number of nodes.

@@ -170,6 +170,26 @@ impl GelBlock {
     }
 }
 
+/// The force a needle scene plots for the step it observed last: its time
+/// (s), the hand's push (N) and the reference there (N); empty at steps
+/// where the reference does not hold.
+#[derive(Debug, Clone, Copy, Default)]
+struct StepForce(Option<(f64, f64, f64)>);
+
+impl StepForce {
+    /// Record `(push, reference)` at time `t`.
+    fn set(&mut self, t: f64, push: f64, reference: f64) {
+        self.0 = Some((t, push, reference));
+    }
+    /// `(push, reference)` if it was recorded at time `t` (the report asks
+    /// after the step it was recorded at, never later).
+    fn at(&self, t: f64) -> Option<(f64, f64)> {
+        self.0
+            .filter(|(at, _, _)| *at == t)
+            .map(|(_, push, reference)| (push, reference))
+    }
+}
+
 /// The mesh node at the entry on the needle's axis (the origin, within
 /// `tol` m).
 fn entry_node(scenario: &str, mesh: &TetMesh, tol: f64) -> Result<usize, UsageError> {

@@ -23,7 +23,7 @@ use crate::params;
 use crate::scenario::{
     Declared, Inputs, Metrics, ParamSet, ParamSpec, Range, Reference, ScenarioInfo, ScenarioRun, Scorer,
 };
-use surgbench_core::mesh::locate;
+use surgbench_core::mesh::locate_in;
 use surgbench_core::{Family, NeedleTissue, Observation, Scene, TissueRegion};
 
 params! {
@@ -123,7 +123,11 @@ struct ProstateRef {
 /// Per-run sums of [`ProstateRef`].
 struct ProstateScorer<'a> {
     r: &'a ProstateRef,
-    mesh: TetMesh,
+    /// The scene's tets (a remeshing model appends nodes and splits tets
+    /// it does not report: its original tets over the current positions
+    /// of the original nodes stand in for its mesh, up to the splits'
+    /// midside offsets).
+    tets: &'a [[usize; 4]],
     /// Per membrane: the largest push (N), the closed form at that step
     /// (N) and the tip's x then (m, world).
     peak: [Option<(f64, f64, f64)>; 2],
@@ -131,7 +135,7 @@ struct ProstateScorer<'a> {
     tip_rest: Option<Vec3>,
     /// The last step's time (s), push (N) and the bound of the tissue the
     /// tip cuts, `f_cut + (f_perlen + eta v) d` (N).
-    last_point: Option<(f64, f64, f64)>,
+    last_point: StepForce,
 }
 
 impl ProstateScorer<'_> {
@@ -139,14 +143,13 @@ impl ProstateScorer<'_> {
     /// is inside the deformed mesh or within 1e-3 of a tet's size of it (a
     /// tip tenting the skin sits on the surface up to the coupling's
     /// tolerance).
-    fn rest_of(&mut self, obs: &Observation, x: &Vec3) -> Option<Vec3> {
+    fn rest_of(&self, obs: &Observation, x: &Vec3) -> Option<Vec3> {
         let t = obs.tissues.first()?;
-        self.mesh.nodes.clone_from(&t.nodes);
-        let (e, w) = locate(&self.mesh, x)?;
+        let (e, w) = locate_in(&t.nodes, self.tets, x)?;
         if w.iter().any(|&v| v < -1e-3) {
             return None;
         }
-        Some((0..4).map(|a| t.rest[self.mesh.tets[e][a]] * w[a]).sum())
+        Some((0..4).map(|a| t.rest[self.tets[e][a]] * w[a]).sum())
     }
 }
 
@@ -159,14 +162,14 @@ impl Scorer for ProstateScorer<'_> {
             return;
         };
         self.tip_rest = self.rest_of(obs, &tip);
-        self.last_point = None;
+        self.last_point = StepForce::default();
         let Some(rest) = self.tip_rest else { return };
         let push = -obs.hand_force.x;
         let d = (tip.x - entry.x).max(0.0);
         let membrane = self.r.layers.membrane_at(&rest, FACE_SLACK);
         let cut = membrane.map_or(self.r.cut, |k| self.r.membrane_cut[k]);
         let bound = cut + self.r.friction * d;
-        self.last_point = Some((obs.time, push, bound));
+        self.last_point.set(obs.time, push, bound);
         if let Some(k) = membrane
             && self.peak[k].is_none_or(|(p, _, _)| push > p)
         {
@@ -179,9 +182,7 @@ impl Scorer for ProstateScorer<'_> {
     /// slides and stays under it while the tip tents a membrane (the
     /// report's force-over-time plot shows the spikes against it).
     fn force_point(&self, obs: &Observation) -> Option<(f64, f64)> {
-        self.last_point
-            .filter(|(t, _, _)| *t == obs.time)
-            .map(|(_, push, bound)| (push, bound))
+        self.last_point.at(obs.time)
     }
 
     fn score(&self, obs: &Observation) -> Metrics {
@@ -216,13 +217,13 @@ impl Scorer for ProstateScorer<'_> {
 
 impl Reference for ProstateRef {
     fn scorer<'a>(&'a self, scene: &'a Scene) -> Box<dyn Scorer + 'a> {
-        let mesh = scene.tissues().next().map(|t| t.mesh.clone()).unwrap_or_default();
+        let tets = scene.tissues().next().map_or(&[][..], |t| &t.mesh.tets[..]);
         Box::new(ProstateScorer {
             r: self,
-            mesh,
+            tets,
             peak: [None, None],
             tip_rest: None,
-            last_point: None,
+            last_point: StepForce::default(),
         })
     }
 }

@@ -277,6 +277,19 @@ fn window(path: &[(f64, f64, f64)], lo: f64, hi: f64) -> PlanePath {
         .collect()
 }
 
+/// How far a time (s) may fall short of another by rounding: a run's
+/// last step time against the feed's end, a reference sample against the
+/// run's time.
+fn rounding_slack(t: f64) -> f64 {
+    1e-9 * t.abs().max(1.0)
+}
+
+/// The metric-name suffix of arc `i` (0-based): none for a single arc,
+/// `_1`, `_2` for the double bend's.
+fn arc_tag(single: bool, i: usize) -> String {
+    if single { String::new() } else { format!("_{}", i + 1) }
+}
+
 /// What the scorer needs of a steering scene.
 struct SteeringRef {
     /// The cached converged run, at the default parameters.
@@ -312,7 +325,7 @@ impl SteeringRef {
     fn shape(&self, tips: &[(f64, Vec3)]) -> Option<PathShape> {
         let first = self.arcs.first()?;
         // (The run's last time may fall a rounding short of the feed's end.)
-        if tips.last()?.0 < first[1] - 1e-9 * first[1].abs().max(1.0) {
+        if tips.last()?.0 < first[1] - rounding_slack(first[1]) {
             return None;
         }
         let (path, out_of_plane) = in_plane(tips, first[1])?;
@@ -367,15 +380,16 @@ impl Scorer for SteeringScorer<'_> {
     fn score(&self, obs: &Observation) -> Metrics {
         let mut m = Metrics::new();
         m.insert("reference_available".into(), self.r.reference.is_some() as u8 as f64);
-        let tips: Vec<(f64, Vec3)> = self.tips.iter().copied().filter(|s| s.0 <= obs.time).collect();
-        let Some(shape) = self.r.shape(&tips) else {
+        // Samples are in time order: the ones up to `obs.time` are a prefix.
+        let tips = &self.tips[..self.tips.partition_point(|s| s.0 <= obs.time)];
+        let Some(shape) = self.r.shape(tips) else {
             return m;
         };
         m.insert("tip_deflection_m".into(), shape.deflection);
         m.insert("out_of_plane_m".into(), shape.out_of_plane);
         let single = shape.curvature.len() == 1;
         for (i, (k, res)) in shape.curvature.iter().zip(&shape.residual_rel).enumerate() {
-            let tag = if single { String::new() } else { format!("_{}", i + 1) };
+            let tag = arc_tag(single, i);
             m.insert(format!("curvature{tag}_per_m"), *k);
             m.insert(format!("arc_fit_residual{tag}_rel"), *res);
         }
@@ -387,10 +401,10 @@ impl Scorer for SteeringScorer<'_> {
         };
         // (Up to the run's time and the rounding its last step may fall
         // short by.)
-        let until = obs.time + 1e-9 * obs.time.abs().max(1.0);
-        let ref_tips: Vec<(f64, Vec3)> = reference.samples.iter().copied().filter(|s| s.0 <= until).collect();
+        let until = obs.time + rounding_slack(obs.time);
+        let ref_tips = &reference.samples[..reference.samples.partition_point(|s| s.0 <= until)];
         m.insert("tip_path_error_m".into(), self.worst_path);
-        let Some(want) = self.r.shape(&ref_tips) else {
+        let Some(want) = self.r.shape(ref_tips) else {
             return m;
         };
         if want.curvature.len() == shape.curvature.len() {
@@ -402,7 +416,7 @@ impl Scorer for SteeringScorer<'_> {
                 .fold(0.0, f64::max);
             m.insert("curvature_error_rel".into(), worst);
             for (i, r) in want.curvature.iter().enumerate() {
-                let tag = if single { String::new() } else { format!("_{}", i + 1) };
+                let tag = arc_tag(single, i);
                 m.insert(format!("reference_curvature{tag}_per_m"), *r);
             }
         }

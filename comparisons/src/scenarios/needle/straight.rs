@@ -77,7 +77,7 @@ struct StraightScorer<'a> {
     pullout_scored: usize,
     /// The last step's `(time, push, closed form)` (s, N, N) where the
     /// closed form holds (insertion past 2 mm, steady retraction).
-    last_point: Option<(f64, f64, f64)>,
+    last_point: StepForce,
 }
 
 impl StraightRef {
@@ -103,10 +103,10 @@ impl Scorer for StraightScorer<'_> {
             .filter(|(t0, _)| t > *t0)
             .map(|(t0, x0)| ((entry - x0) / (t - t0)).abs());
         self.last_entry = Some((t, entry));
-        self.last_point = None;
+        self.last_point = StepForce::default();
         if t <= self.r.t_insert && d >= SCORE_FROM_DEPTH {
             let closed = self.r.f_cut + f * d;
-            self.last_point = Some((t, push, closed));
+            self.last_point.set(t, push, closed);
             self.worst_insertion = self.worst_insertion.max((push - closed).abs() / closed);
             self.scored += 1;
         } else if t > self.r.t_insert + 1e-9 && t <= self.r.t_hold && d > 0.0 {
@@ -116,7 +116,7 @@ impl Scorer for StraightScorer<'_> {
             let excess = (-push) / (f * d) - 1.0;
             self.worst_retraction = self.worst_retraction.max(excess);
             if entry_speed.is_some_and(|v| v < STEADY_ENTRY_SPEED * self.r.speed) && d >= SCORE_FROM_DEPTH {
-                self.last_point = Some((t, push, -f * d));
+                self.last_point.set(t, push, -f * d);
                 self.worst_pullout = self.worst_pullout.max((-push - f * d).abs() / (f * d));
                 self.pullout_scored += 1;
             }
@@ -126,9 +126,7 @@ impl Scorer for StraightScorer<'_> {
     /// The hand's push along +x against the closed form, at the steps the
     /// closed form holds (insertion, steady retraction).
     fn force_point(&self, obs: &Observation) -> Option<(f64, f64)> {
-        self.last_point
-            .filter(|(t, _, _)| *t == obs.time)
-            .map(|(_, push, closed)| (push, closed))
+        self.last_point.at(obs.time)
     }
 
     fn score(&self, obs: &Observation) -> Metrics {
@@ -160,7 +158,7 @@ impl Reference for StraightRef {
             last_entry: None,
             worst_pullout: 0.0,
             pullout_scored: 0,
-            last_point: None,
+            last_point: StepForce::default(),
         })
     }
 }

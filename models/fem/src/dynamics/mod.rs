@@ -346,8 +346,7 @@ impl FemModel {
         cons.extend(body.driven_nodes.iter().map(|&(i, d)| Constraint::displaced(i, d)));
         let (free, uc) = dof_conditions(n, &cons)?;
         let rho: Vec<f64> = materials.iter().map(|m| m.density).collect();
-        let gravity_load =
-            solid.body_loads_by_tet(&|_: &Vec3, e| gravity * rho[tet_material.get(e).copied().unwrap_or(0)]);
+        let gravity_load = solid.body_loads_by_tet(&|_: &Vec3, e| gravity * rho[solid.material_index(e)]);
         let mut sys = System::new(&solid.pat, free);
         sys.set_single_precision_preconditioner(p.reuse_f32);
         let x = solid.rest.clone();
