@@ -51,6 +51,14 @@ pub struct ModelEntry {
     pub sweep: Option<Grid>,
     /// Replaces the quick sweep for this model.
     pub quick_sweep: Option<Grid>,
+    /// Points run after the sweep's for this model, expanded like a sweep:
+    /// a setting run on part of the sweep only (the meshless seed variant,
+    /// whose explicit steps make the finest mesh level too slow). A point
+    /// also in the sweep is an error (each point is one run and one
+    /// folder).
+    pub extra_sweep: Option<Grid>,
+    /// `extra_sweep` for `--quick`.
+    pub quick_extra_sweep: Option<Grid>,
     /// Fixed knobs added to every sweep point of this model.
     #[serde(default)]
     pub fidelity: BTreeMap<String, Setting>,
@@ -426,11 +434,23 @@ impl Comparison {
                 } else {
                     me.sweep.as_ref().or(entry.sweep.as_ref())
                 };
-                let sweep = match grid {
+                let mut sweep = match grid {
                     Some(g) => expand(g)?,
                     None if quick => sc.quick_sweep(),
                     None => sc.sweep(),
                 };
+                let extra = if quick { &me.quick_extra_sweep } else { &me.extra_sweep };
+                if let Some(g) = extra {
+                    for fid in expand(g)? {
+                        if sweep.contains(&fid) {
+                            return Err(UsageError(format!(
+                                "{}: the extra sweep of {id} repeats the sweep's point {fid} (each point is one run and one folder); list it once",
+                                sc.id()
+                            )));
+                        }
+                        sweep.push(fid);
+                    }
+                }
                 let fixed = expand(&me.fidelity.iter().map(|(k, v)| (k.clone(), vec![v.clone()])).collect())?;
                 for fid in sweep {
                     let fid = fid.merged(&fixed[0]);
@@ -537,6 +557,31 @@ mod tests {
         assert!(e.0.contains("unknown choice `jacobi`"), "{e}");
         let e = jobs("[scenario.models.pbd-rod]\nfidelity = { solver = true }\n").unwrap_err();
         assert!(e.0.contains("a number or a choice name"), "{e}");
+    }
+
+    /// An extra sweep adds its points after the sweep's, for its model only;
+    /// one that repeats a sweep point is refused, naming it.
+    #[test]
+    fn an_extra_sweep_adds_points_after_the_sweep() {
+        let base = "name = \"x\"\nmodels = [\"pbd-rod\"]\n[[scenario]]\nid = \"cantilever-gravity\"\n";
+        let jobs = |models: &str| Comparison::parse(&format!("{base}{models}")).and_then(|c| c.jobs(false, None));
+        let j = jobs(
+            "sweep = { segments = [10, 20] }\n[scenario.models.pbd-rod]\nextra_sweep = { segments = [10], solver = [\"direct\"] }\n",
+        )
+        .unwrap();
+        let f: Vec<String> = j.iter().map(|j| j.fidelity.to_string()).collect();
+        assert_eq!(f, ["segments=10", "segments=20", "segments=10;solver=direct"]);
+        let e = jobs("sweep = { segments = [10, 20] }\n[scenario.models.pbd-rod]\nextra_sweep = { segments = [20] }\n")
+            .unwrap_err();
+        assert!(e.0.contains("repeats the sweep's point segments=20"), "{e}");
+        // The quick run takes the quick extra sweep, not the full one.
+        let q = Comparison::parse(&format!(
+            "{base}quick_sweep = {{ segments = [10] }}\n[scenario.models.pbd-rod]\nextra_sweep = {{ segments = [40] }}\nquick_extra_sweep = {{ segments = [20] }}\n"
+        ))
+        .and_then(|c| c.jobs(true, None))
+        .unwrap();
+        let f: Vec<String> = q.iter().map(|j| j.fidelity.to_string()).collect();
+        assert_eq!(f, ["segments=10", "segments=20"]);
     }
 
     #[test]

@@ -4,11 +4,26 @@
 use crate::model::MeshlessTissue;
 use surgbench_core::statics;
 use surgbench_core::{
-    BuildError, Capability, Choice, Family, Fidelity, FidelityKey, Model, ModelFactory, Scene, Settings, Unsupported,
+    BuildError, Capability, Choice, Family, Fidelity, FidelityKey, Model, ModelFactory, Scene, Setting, Settings,
+    Unsupported,
 };
 
 /// Fidelity extras of `meshless` (besides `dt` and `iterations` = PBD sweeps).
 pub const MESHLESS_KEYS: &[FidelityKey] = &[
+    FidelityKey::choice(
+        "variant",
+        "which configuration the other keys default to",
+        &[
+            Choice::new(
+                "harness",
+                "this harness's (default): quasi-static Newton on settling scenes, backward Euler otherwise, hourglass control 0.1, no PBD",
+            ),
+            Choice::new(
+                "seed",
+                "the vascular-tissue seed's: symplectic Euler at half the Courant step h_min / c_p, the PBD stretch and virtual-tet corrections on, no hourglass control (keys named beside it still win)",
+            ),
+        ],
+    ),
     FidelityKey::number(
         "support_factor",
         "poly6 support radius h_i over node i's local edge length (mean edge of the tets around it; default 1.5)",
@@ -59,6 +74,35 @@ pub const MESHLESS_KEYS: &[FidelityKey] = &[
     .above(0.0),
 ];
 
+/// Fraction of the Courant step `h_min / c_p` the seed variant's explicit
+/// integrator takes. The stability limit `2 / omega_max` (power iteration,
+/// [`crate::MeshlessTissue::critical_dt`], at the seed variant's settings)
+/// measured 1.03-1.04 `h_min / c_p` on the Truth Cube (nu = 0.499), 1.20 on
+/// block compression and 2.2-2.3 on the Lamé tube at mesh levels 0-2:
+/// half the Courant step leaves a factor of two or more.
+pub const SEED_COURANT_FRACTION: f64 = 0.5;
+
+/// The seed variant's explicit time step on `scene` (s):
+/// [`SEED_COURANT_FRACTION`] `h_min / c_p`, `h_min` the shortest edge of the
+/// tissue's mesh and `c_p = sqrt((lambda + 2 mu) / rho)` the dilatational
+/// wave speed of its material; `None` without a tissue (or a degenerate
+/// one, left to the build to refuse).
+pub fn seed_dt(scene: &Scene) -> Option<f64> {
+    let t = scene.tissues().next()?;
+    let h_min = t
+        .mesh
+        .tets
+        .iter()
+        .flat_map(|e| (0..4).flat_map(move |a| (a + 1..4).map(move |b| (e[a], e[b]))))
+        .map(|(a, b)| (t.mesh.nodes[a] - t.mesh.nodes[b]).norm())
+        .fold(f64::INFINITY, f64::min);
+    let (e, nu, rho) = (t.material.youngs_modulus, t.material.poisson_ratio, t.material.density);
+    let lambda = e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
+    let mu = e / (2.0 * (1.0 + nu));
+    let dt = SEED_COURANT_FRACTION * h_min / ((lambda + 2.0 * mu) / rho).sqrt();
+    (dt.is_finite() && dt > 0.0).then_some(dt)
+}
+
 /// Factory of the point-primitive (meshless) tissue, id `meshless`.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct MeshlessFactory;
@@ -106,8 +150,23 @@ impl ModelFactory for MeshlessFactory {
         f
     }
     /// A settling scene run with a dynamic integrator the caller picked,
-    /// and no `dt`: the dynamic default `dt = 1 ms`.
-    fn complete_defaults(&self, _scene: &Scene, requested: &Fidelity, merged: &mut Fidelity) {
+    /// and no `dt`: the dynamic default `dt = 1 ms`. The seed variant with
+    /// its explicit integrator and no `dt`: [`seed_dt`] (on any scene).
+    fn complete_defaults(&self, scene: &Scene, requested: &Fidelity, merged: &mut Fidelity) {
+        let seed = matches!(merged.extras.get("variant"), Some(Setting::Choice(c)) if c == "seed");
+        let explicit = match merged.extras.get("integrator") {
+            None => seed,
+            Some(Setting::Choice(c)) => c == "symplectic-euler",
+            Some(Setting::Number(_)) => false,
+        };
+        if seed
+            && explicit
+            && requested.dt.is_none()
+            && let Some(dt) = seed_dt(scene)
+        {
+            merged.dt = Some(dt);
+            return;
+        }
         statics::keep_dynamic_dt(requested, merged, 1e-3);
     }
     fn check(&self, scene: &Scene) -> Result<(), Unsupported> {

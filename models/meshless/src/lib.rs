@@ -19,6 +19,9 @@
 //! * Frictionless contact with a rigid sphere by a node penalty in the
 //!   implicit integrators' Newton objective ([`contact`]).
 //! * Symplectic Euler, backward Euler or quasi-static stepping ([`model`]).
+//! * `variant=seed` runs the seed's own configuration: symplectic Euler at
+//!   half the Courant step ([`seed_dt`]), the PBD corrections on, no
+//!   hourglass control; `variant=harness` (the default) is the harness's.
 //!
 //! Units are SI throughout (m, kg, s, N, Pa).
 //!
@@ -45,7 +48,7 @@ pub mod pressure;
 
 pub use contact::SphereContact;
 pub use elastic::{PointElastic, StateCache};
-pub use factory::{MESHLESS_KEYS, MeshlessFactory};
+pub use factory::{MESHLESS_KEYS, MeshlessFactory, SEED_COURANT_FRACTION, seed_dt};
 pub use mls::MlsMap;
 pub use model::{Integrator, MappingError, MeshlessSettings, MeshlessTissue, local_edge_lengths, longest_edges};
 pub use pbd::PbdConstraints;

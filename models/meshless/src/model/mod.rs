@@ -96,6 +96,9 @@ mod harness;
 mod solve;
 
 /// The names of `integrator`, as integrators.
+/// `variant` names: whether the seed's configuration is the default.
+const VARIANTS: &[(&str, bool)] = &[("harness", false), ("seed", true)];
+
 const INTEGRATORS: &[(&str, Integrator)] = &[
     ("symplectic-euler", Integrator::SymplecticEuler),
     ("backward-euler", Integrator::BackwardEuler),
@@ -157,7 +160,12 @@ impl MeshlessSettings {
         if !(dt > 0.0 && dt.is_finite()) {
             return Err(BuildError::bad("dt", format!("must be > 0, got {dt}")));
         }
-        let default_integrator = if scene.settle.is_some() {
+        // The seed variant ([`crate::factory::MESHLESS_KEYS`] `variant`):
+        // explicit, PBD corrections on, no hourglass control, unless named.
+        let seed = settings.pick("variant", VARIANTS, false)?;
+        let default_integrator = if seed {
+            Integrator::SymplecticEuler
+        } else if scene.settle.is_some() {
             Integrator::QuasiStatic
         } else {
             Integrator::BackwardEuler
@@ -169,10 +177,10 @@ impl MeshlessSettings {
             iterations,
             support_factor: settings.number_or("support_factor", 1.5),
             mls_factor: settings.number_or("mls_factor", 2.0),
-            stabilization: settings.number_or("stabilization", 0.1),
+            stabilization: settings.number_or("stabilization", if seed { 0.0 } else { 0.1 }),
             integrator,
             damping,
-            pbd: settings.switch("pbd", false),
+            pbd: settings.switch("pbd", seed),
             pbd_stretch: settings.number_or("pbd_stretch", 0.5),
             pbd_tet: settings.number_or("pbd_tet", 0.5),
             support_floor: settings.number_or("support_floor", DEFAULT_SUPPORT_FLOOR),
