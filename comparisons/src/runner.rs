@@ -382,6 +382,7 @@ fn sample(obs: &Observation, scorer: &dyn Scorer, primary: &str) -> Sample {
         error: scorer.score(obs).get(primary).copied().unwrap_or(f64::NAN),
         reference_tip: scorer.reference_tip_at(obs.time).unwrap_or([f64::NAN; 3]),
         force: scorer.force_point(obs).map_or([f64::NAN; 2], |(f, r)| [f, r]),
+        depth: scorer.force_depth(obs).unwrap_or(f64::NAN),
     }
 }
 

@@ -271,6 +271,14 @@ pub trait Scorer {
         let _ = obs;
         None
     }
+    /// For scenes scored along a load curve (an indenter's force against
+    /// its depth): the indentation depth at `obs` (m), which the report
+    /// plots [`Scorer::force_point`] against; `None` (the default) for the
+    /// others.
+    fn force_depth(&self, obs: &Observation) -> Option<f64> {
+        let _ = obs;
+        None
+    }
 }
 
 impl<F: Fn(&Observation) -> Metrics> Scorer for F {

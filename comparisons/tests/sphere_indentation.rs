@@ -281,6 +281,16 @@ fn the_series_carries_the_scored_force_and_hertz() {
     for x in &scored {
         assert_eq!(x.force[0], 4.0 * x.hand_force[2], "t = {}", x.t);
     }
+    // The depth the report's force-depth plot draws it against: the
+    // ramp's load factor times the full depth, so Hertz's value there is
+    // F_ref (d / delta)^(3/2) (rounding apart: a power of a quotient).
+    let (delta, f_full) = (p.get("depth"), s.series.last().unwrap().force[1]);
+    for x in &scored {
+        assert!(x.depth.is_finite() && x.depth >= 0.0 && x.depth <= delta, "t = {}: {}", x.t, x.depth);
+        let hertz = f_full * (x.depth / delta).powf(1.5);
+        assert!((x.force[1] - hertz).abs() <= 1e-12 * f_full, "t = {}", x.t);
+    }
+    assert_eq!(s.series.last().unwrap().depth, delta);
     let last = s.series.last().unwrap();
     let want = last.force[0] / s.errors["force_ratio"];
     // Two roundings apart (a ratio and its inverse).

@@ -658,7 +658,12 @@ fn tissue_comparison_expands_to_supported_and_unsupported_jobs() {
     assert_eq!(find("block-compression", "fem").len(), 2 * 2);
     // meshless: its quick sweep and the seed variant at level 0 after it
     // (issue 21), on each scored scene the variant runs.
-    for (sc, instances) in [("block-compression", 2), ("lame-tube", 1), ("truth-cube", 3), ("wall-indentation", 1)] {
+    for (sc, instances) in [
+        ("block-compression", 2),
+        ("lame-tube", 1),
+        ("truth-cube", 3),
+        ("wall-indentation", 1),
+    ] {
         let f: Vec<String> = find(sc, "meshless").iter().map(|j| j.fidelity.to_string()).collect();
         let one = ["mesh_level=0", "mesh_level=1", "mesh_level=0;variant=seed"];
         assert_eq!(f, one.repeat(instances), "{sc}");

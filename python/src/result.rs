@@ -98,7 +98,9 @@ impl RunResult {
     /// `energy` J, `error`: the primary error, NaN where not scored;
     /// `ref_tip_x` m: the reference tip trajectory, NaN where the scenario's
     /// reference is not one; `force` and `ref_force` N: the force the scene
-    /// scores and the reference's value, NaN where it scores none).
+    /// scores and the reference's value, NaN where it scores none; `depth`
+    /// m: the indentation depth a load-curve scene plots that force
+    /// against, NaN elsewhere).
     #[getter]
     fn observables<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         // One row per sample, in the column order of `observables.csv`
@@ -111,7 +113,7 @@ impl RunResult {
                 let ([tx, ty, tz], [fx, fy, fz], [mx, my, mz]) = (x.tip, x.hand_force, x.hand_torque);
                 let ([rx, ry, rz], [sf, rf]) = (x.reference_tip, x.force);
                 [
-                    x.t, tx, ty, tz, fx, fy, fz, mx, my, mz, x.energy, x.error, rx, ry, rz, sf, rf,
+                    x.t, tx, ty, tz, fx, fy, fz, mx, my, mz, x.energy, x.error, rx, ry, rz, sf, rf, x.depth,
                 ]
             })
             .collect();

@@ -48,7 +48,7 @@ def test_run_one_equals_the_cli_bit_for_bit(cli, tmp_path, scenario, model, para
         assert getattr(r, key) == summary[key], key
     # Time series and final state: the same floats (the CSVs print the
     # shortest text that reads back to the same f64).
-    for k in SERIES + ["energy", "error", "ref_tip_x", "ref_tip_y", "ref_tip_z", "force", "ref_force"]:
+    for k in SERIES + ["energy", "error", "ref_tip_x", "ref_tip_y", "ref_tip_z", "force", "ref_force", "depth"]:
         np.testing.assert_array_equal(r.observables[k], series[k], err_msg=k)
     np.testing.assert_array_equal(r.final_state, state[:, 5:8])
     np.testing.assert_array_equal(r.final_rest, state[:, 2:5])

@@ -522,7 +522,7 @@ pub fn read_run_info(path: &Path) -> Result<RunInfo, ReportError> {
 }
 
 /// The columns of a per-run `observables.csv`, in file order.
-pub const SERIES_COLUMNS: [&str; 17] = [
+pub const SERIES_COLUMNS: [&str; 18] = [
     "t",
     "tip_x",
     "tip_y",
@@ -540,6 +540,7 @@ pub const SERIES_COLUMNS: [&str; 17] = [
     "ref_tip_z",
     "force",
     "ref_force",
+    "depth",
 ];
 
 /// One run's time series (`<run_dir>/observables.csv`), SI units.
@@ -586,6 +587,9 @@ pub struct Series {
     pub force: Vec<f64>,
     /// The reference's value of that force at this step (N).
     pub ref_force: Vec<f64>,
+    /// The indentation depth the force is plotted against (m), where the
+    /// scene is scored along a load curve (NaN elsewhere).
+    pub depth: Vec<f64>,
 }
 
 impl Series {
@@ -607,7 +611,8 @@ impl Series {
             13 => &mut self.ref_tip_y,
             14 => &mut self.ref_tip_z,
             15 => &mut self.force,
-            _ => &mut self.ref_force,
+            16 => &mut self.ref_force,
+            _ => &mut self.depth,
         }
     }
 }

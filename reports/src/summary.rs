@@ -244,6 +244,9 @@ pub struct Sample {
     /// The force the scene scores and the reference's value of it (N; NaN
     /// where the scene is not scored along a force history).
     pub force: [f64; 2],
+    /// The indentation depth that force is plotted against (m; NaN where
+    /// the scene is not scored along a load curve).
+    pub depth: f64,
 }
 
 /// One node of a run's final state (a row of `final_state.csv`).
@@ -388,12 +391,11 @@ impl RunSummary {
             let [rx, ry, rz] = x
                 .reference_tip
                 .map(|v| if v.is_finite() { format!("{v:e}") } else { String::new() });
-            let [sf, rf] = x
-                .force
-                .map(|v| if v.is_finite() { format!("{v:e}") } else { String::new() });
+            let [sf, rf, depth] =
+                [x.force[0], x.force[1], x.depth].map(|v| if v.is_finite() { format!("{v:e}") } else { String::new() });
             writeln!(
                 f,
-                "{:e},{tx:e},{ty:e},{tz:e},{fx:e},{fy:e},{fz:e},{mx:e},{my:e},{mz:e},{:e},{err},{rx},{ry},{rz},{sf},{rf}",
+                "{:e},{tx:e},{ty:e},{tz:e},{fx:e},{fy:e},{fz:e},{mx:e},{my:e},{mz:e},{:e},{err},{rx},{ry},{rz},{sf},{rf},{depth}",
                 x.t, x.energy
             )?;
         }

@@ -416,6 +416,31 @@ fn force_over_time_is_drawn_where_the_series_has_a_reference_force() {
     render(dir, &rows, &common::info()).unwrap();
     assert!(dir.join("plots/cantilever-gravity-force-time.svg").is_file());
     assert!(read(&dir.join("report.md")).contains("best ok run is scored on, over simulated time"));
+    // No depth column: no force-depth plot.
+    assert!(!dir.join("plots/cantilever-gravity-force-depth.svg").exists());
+}
+
+/// A run whose series also records the indenter's depth gets the
+/// force-against-depth plot beside the one over time; its page text names
+/// the depth.
+#[test]
+fn force_against_depth_is_drawn_where_the_series_has_a_depth() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let rows = common::rows();
+    common::write_series(dir, &rows);
+    for r in rows.iter().filter(|r| r.status == Status::Ok && !r.run_dir.is_empty()) {
+        let d = dir.join(&r.run_dir);
+        fs::create_dir_all(&d).unwrap();
+        // A Hertz-like curve F = d^(3/2) sampled at a static solve's two
+        // load increments (depth empty before the ramp: not plotted).
+        let text = "t,error,force,ref_force,depth\n0,,,,\n0.125,1e-3,3.6e-4,3.5e-4,5e-3\n0.25,1e-3,1.02e-3,1e-3,1e-2\n";
+        fs::write(d.join("observables.csv"), text).unwrap();
+    }
+    render(dir, &rows, &common::info()).unwrap();
+    assert!(dir.join("plots/cantilever-gravity-force-time.svg").is_file());
+    assert!(dir.join("plots/cantilever-gravity-force-depth.svg").is_file());
+    assert!(read(&dir.join("report.md")).contains("against the indenter's depth"));
 }
 
 /// A model whose settings rest on a fitted constant is named in the run

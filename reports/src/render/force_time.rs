@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use super::{Group, Section, Styles, best_ok_runs, over_time, run_label};
+use super::{Group, Section, Styles, best_ok_runs, one_panel, over_time, run_label};
 use crate::figure::{Axis, Figure, LegendEntry, Line, Look, SeriesSpec};
 use crate::{fmt_sig, read_series};
 
@@ -36,6 +36,16 @@ fn stretches(t: &[f64], v: &[f64]) -> Vec<Vec<(f64, f64)>> {
     out
 }
 
+/// The abscissa a force plot draws the scored force against.
+#[derive(Clone, Copy, PartialEq)]
+enum Abscissa {
+    /// Simulated time (s), every scene scored along a force history.
+    Time,
+    /// The indentation depth (m, the `depth` column), the scenes scored
+    /// along a load curve.
+    Depth,
+}
+
 /// The scored force of each model's best ok run ([`best_ok_runs`]) over time,
 /// solid, with the reference's value at the same steps, dashed in the same
 /// colour (a reference that depends on the run's own state, such as the
@@ -43,6 +53,20 @@ fn stretches(t: &[f64], v: &[f64]) -> Vec<Vec<(f64, f64)>> {
 /// run recorded a reference force. Unreadable series are noted by the
 /// error-over-time plot, which reads the same runs.
 pub(super) fn force_time_figure(dir: &Path, g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figure, String)> {
+    force_figure(dir, g, st, sec, Abscissa::Time)
+}
+
+/// The same force against the indenter's depth, for the scenes scored along
+/// a load curve (sphere and wall indentation against Hertz and the
+/// scikit-fem contact reference, the wall punch): the force-depth curve a
+/// reviewer compares with the reference's. A model solved as a static
+/// problem has one point per load increment it took (one for a single
+/// increment), drawn as markers. `None` when no run recorded a depth.
+pub(super) fn force_depth_figure(dir: &Path, g: &Group, st: &Styles, sec: &mut Section) -> Option<(Figure, String)> {
+    force_figure(dir, g, st, sec, Abscissa::Depth)
+}
+
+fn force_figure(dir: &Path, g: &Group, st: &Styles, sec: &mut Section, along: Abscissa) -> Option<(Figure, String)> {
     let mut series = Vec::new();
     let mut legend = Vec::new();
     let mut runs = Vec::new();
@@ -53,26 +77,33 @@ pub(super) fn force_time_figure(dir: &Path, g: &Group, st: &Styles, sec: &mut Se
         let Ok(s) = read_series(&dir.join(&r.run_dir).join("observables.csv")) else {
             continue;
         };
-        let (got, want) = (stretches(&s.t, &s.force), stretches(&s.t, &s.ref_force));
+        let x = match along {
+            Abscissa::Time => &s.t,
+            Abscissa::Depth => &s.depth,
+        };
+        let (got, want) = (stretches(x, &s.force), stretches(x, &s.ref_force));
         if !want.is_empty() {
             runs.push((r, got, want));
         }
     }
     // A force far off every reference would flatten the others to a line
-    // at zero: such a model is left off the plot and named in a note.
+    // at zero: such a model is left off the plot and named in a note (once,
+    // by the plot over time).
     let largest = |parts: &[Vec<(f64, f64)>]| parts.iter().flatten().map(|p| p.1.abs()).fold(0.0, f64::max);
     let scale = runs.iter().map(|(_, _, want)| largest(want)).fold(0.0, f64::max);
     for (r, got, want) in runs {
         let model = r.model.as_str();
         let peak = largest(&got);
         if scale > 0.0 && peak > OFF_SCALE * scale {
-            sec.notes.push(format!(
-                "Force over time: {} is left off the plot: its force reaches {} N, {}x the largest reference force ({} N).",
-                run_label(r),
-                fmt_sig(peak, 3),
-                fmt_sig(peak / scale, 3),
-                fmt_sig(scale, 3)
-            ));
+            if along == Abscissa::Time {
+                sec.notes.push(format!(
+                    "Force over time: {} is left off the plot: its force reaches {} N, {}x the largest reference force ({} N).",
+                    run_label(r),
+                    fmt_sig(peak, 3),
+                    fmt_sig(peak / scale, 3),
+                    fmt_sig(scale, 3)
+                ));
+            }
             continue;
         }
         let look = st.look(model, 0, Line::Solid);
@@ -109,19 +140,39 @@ pub(super) fn force_time_figure(dir: &Path, g: &Group, st: &Styles, sec: &mut Se
     if series.is_empty() {
         return None;
     }
-    let fig = over_time(
-        format!(
-            "{}: scored force over time against the reference (best ok run)",
-            g.title
+    let (fig, alt) = match along {
+        Abscissa::Time => (
+            over_time(
+                format!(
+                    "{}: scored force over time against the reference (best ok run)",
+                    g.title
+                ),
+                Axis::linear("force [N]"),
+                series,
+                legend,
+            ),
+            format!(
+                "{}: the force each model's best ok run is scored on, over simulated time, with the reference's value at the same steps (dashed; gaps where the reference does not hold)",
+                g.title
+            ),
         ),
-        Axis::linear("force [N]"),
-        series,
-        legend,
-    );
-    let alt = format!(
-        "{}: the force each model's best ok run is scored on, over simulated time, with the reference's value at the same steps (dashed; gaps where the reference does not hold)",
-        g.title
-    );
+        Abscissa::Depth => (
+            one_panel(
+                format!(
+                    "{}: force against indentation depth, with the reference (best ok run)",
+                    g.title
+                ),
+                Axis::linear("indentation depth [m]"),
+                Axis::linear("force [N]"),
+                series,
+                legend,
+            ),
+            format!(
+                "{}: the force each model's best ok run is scored on against the indenter's depth, with the reference's force at the same depths (dashed)",
+                g.title
+            ),
+        ),
+    };
     Some((fig, alt))
 }
 

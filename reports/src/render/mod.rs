@@ -23,7 +23,7 @@ mod verdicts;
 use centreline::centreline_figure;
 use convergence::convergence_figure;
 use error_time::error_time_figure;
-use force_time::force_time_figure;
+use force_time::{force_depth_figure, force_time_figure};
 use pareto::pareto_figure;
 use stability::stability_figure;
 use tables::page;
@@ -33,7 +33,7 @@ use tip_time::tip_time_figure;
 const PLOT_SIZE: (u32, u32) = (1100, 700);
 
 /// Renders the report for `rows` into `dir` (which normally already holds
-/// `results.csv`): `plots/<stem>-{pareto,convergence,error-time,tip-time,centreline,force-time,stability}.{svg,png}` (tip-time where the runs recorded a reference trajectory, centreline for rod models, force-time where they recorded a reference force),
+/// `results.csv`): `plots/<stem>-{pareto,convergence,error-time,tip-time,centreline,force-time,force-depth,stability}.{svg,png}` (tip-time where the runs recorded a reference trajectory, centreline for rod models, force-time where they recorded a reference force, force-depth where they also recorded the indenter's depth),
 /// `report.md` and `index.html`. Returns every file written, plots first.
 ///
 /// `plots/` is owned by the renderer: stale `.svg`/`.png` files in it are
@@ -59,6 +59,7 @@ pub fn render(dir: &Path, rows: &[ResultRow], info: &RunInfo) -> Result<Vec<Path
             ("tip-time", tip_time_figure(dir, g, &styles, &mut sec)),
             ("centreline", centreline_figure(dir, g, &styles, &mut sec)),
             ("force-time", force_time_figure(dir, g, &styles, &mut sec)),
+            ("force-depth", force_depth_figure(dir, g, &styles, &mut sec)),
             ("stability", stability_figure(g, &styles, &mut sec)),
         ];
         for (kind, fig) in figs {
@@ -315,11 +316,28 @@ fn over_time(
     series: Vec<crate::figure::SeriesSpec>,
     legend: Vec<crate::figure::LegendEntry>,
 ) -> crate::figure::Figure {
+    one_panel(
+        title,
+        crate::figure::Axis::linear("simulated time t [s]"),
+        y,
+        series,
+        legend,
+    )
+}
+
+/// A one-panel plot with the axes `x` and `y`.
+fn one_panel(
+    title: String,
+    x: crate::figure::Axis,
+    y: crate::figure::Axis,
+    series: Vec<crate::figure::SeriesSpec>,
+    legend: Vec<crate::figure::LegendEntry>,
+) -> crate::figure::Figure {
     crate::figure::Figure {
         title,
         panels: vec![crate::figure::Panel {
             title: String::new(),
-            x: crate::figure::Axis::linear("simulated time t [s]"),
+            x,
             y,
             series,
         }],

@@ -13,6 +13,9 @@ pub(super) trait ForceCurve: Send + Sync + 'static {
     /// `(force of obs, reference force at obs.time)` (N), or `None` where
     /// the reference has no value (below its first tabulated depth).
     fn curve_point(&self, scene: &Scene, obs: &Observation) -> Option<(f64, f64)>;
+    /// The indenter's depth at the end of the ramp (m); at a step it is
+    /// that times the step's load factor.
+    fn full_depth(&self) -> f64;
 }
 
 /// A [`ForceCurve`] as a scenario's [`Reference`].
@@ -58,5 +61,8 @@ impl<S: ForceCurve> Scorer for CurveScorer<'_, S> {
     }
     fn force_point(&self, obs: &Observation) -> Option<(f64, f64)> {
         self.run.curve_point(self.scene, obs)
+    }
+    fn force_depth(&self, obs: &Observation) -> Option<f64> {
+        Some(self.scene.control.command_at(obs.time).load * self.run.full_depth())
     }
 }

@@ -116,6 +116,9 @@ impl SphereRun {
 }
 
 impl ForceCurve for SphereRun {
+    fn full_depth(&self) -> f64 {
+        self.depth
+    }
     fn metrics(&self, scene: &Scene, obs: &Observation) -> Option<Metrics> {
         let mut m = Metrics::new();
         let t = tissue_of(obs, &self.mesh)?;

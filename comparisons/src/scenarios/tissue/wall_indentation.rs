@@ -104,6 +104,9 @@ impl WallSphereRun {
 }
 
 impl ForceCurve for WallSphereRun {
+    fn full_depth(&self) -> f64 {
+        self.depth
+    }
     fn metrics(&self, scene: &Scene, obs: &Observation) -> Option<Metrics> {
         let mut m = Metrics::new();
         let (Some(t), Some(c)) = (tissue_of(obs, &self.mesh), indenter_centre(scene, obs.time)) else {

@@ -104,6 +104,9 @@ impl PunchRun {
 }
 
 impl ForceCurve for PunchRun {
+    fn full_depth(&self) -> f64 {
+        self.depth
+    }
     fn metrics(&self, _: &Scene, obs: &Observation) -> Option<Metrics> {
         let mut m = Metrics::new();
         let t = tissue_of(obs, &self.mesh)?;
