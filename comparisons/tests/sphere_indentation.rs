@@ -286,7 +286,12 @@ fn the_series_carries_the_scored_force_and_hertz() {
     // F_ref (d / delta)^(3/2) (rounding apart: a power of a quotient).
     let (delta, f_full) = (p.get("depth"), s.series.last().unwrap().force[1]);
     for x in &scored {
-        assert!(x.depth.is_finite() && x.depth >= 0.0 && x.depth <= delta, "t = {}: {}", x.t, x.depth);
+        assert!(
+            x.depth.is_finite() && x.depth >= 0.0 && x.depth <= delta,
+            "t = {}: {}",
+            x.t,
+            x.depth
+        );
         let hertz = f_full * (x.depth / delta).powf(1.5);
         assert!((x.force[1] - hertz).abs() <= 1e-12 * f_full, "t = {}", x.t);
     }

@@ -52,6 +52,16 @@ struct Part {
     tmp: Vec<f32>,
 }
 
+/// The supernode of every factor column of `sn`.
+fn snode_of_columns(sn: &SymbolicSupernodalCholesky<usize>) -> Vec<usize> {
+    let (begin, end) = (sn.supernode_begin(), sn.supernode_end());
+    let mut snode_of = vec![0usize; sn.nrows()];
+    for s in 0..sn.n_supernodes() {
+        snode_of[begin[s]..end[s]].fill(s);
+    }
+    snode_of
+}
+
 /// The supernodal elimination tree: the parent of a supernode owns its
 /// first off-diagonal row, and parents come after their children.
 struct Tree {
@@ -69,12 +79,8 @@ impl Tree {
     /// The tree of the supernodal factor `sn`.
     fn new(sn: &SymbolicSupernodalCholesky<usize>) -> Self {
         let ns = sn.n_supernodes();
-        let (begin, end) = (sn.supernode_begin(), sn.supernode_end());
         let val_ptr = sn.col_ptr_for_val();
-        let mut snode_of = vec![0usize; sn.nrows()];
-        for s in 0..ns {
-            snode_of[begin[s]..end[s]].fill(s);
-        }
+        let snode_of = snode_of_columns(sn);
         let pattern = |s: usize| sn.supernode(s).pattern();
         let mut children: Vec<Vec<usize>> = vec![Vec::new(); ns];
         let mut roots = Vec::new();
@@ -354,4 +360,196 @@ fn dot(a: &[f32], b: &[f32]) -> f32 {
         acc[k] += x * y;
     }
     ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]))
+}
+
+/// Forward elimination `y = L^-1 P b` with faer's `f64` supernodal factor
+/// for right-hand sides with a few non-zeros (a point force spread over the
+/// four nodes of a tet), and the Gram matrix `G = Y^T Y = B^T A^-1 B` of
+/// several such `b`: the tissue's share of a coupling's Delassus matrix
+/// without a full solve per column.
+///
+/// Only the supernodes on the elimination-tree paths from the non-zeros to
+/// the root are touched (Gilbert & Peierls, SIAM J. Sci. Stat. Comput. 9,
+/// 1988: the non-zeros of `L^-1 b` are the tree ancestors of those of `b`);
+/// with a nested-dissection ordering those paths are a small part of the
+/// factor. Half of a full solve (no back substitution) at most, usually far
+/// less. Sequential, with fixed summation orders: the same bits for any
+/// thread count.
+pub struct SparseForward {
+    /// Factor column of every full DOF (`usize::MAX` for a constrained one).
+    col_of: Vec<usize>,
+    /// Supernode of every factor column.
+    snode_of: Vec<usize>,
+    /// Parent supernode (`usize::MAX` for a root).
+    parent: Vec<usize>,
+    /// Supernodes in faer's order, columns and pattern in factor numbering.
+    snodes: Vec<Snode>,
+    /// Scratch: the columns being eliminated, and a mark per supernode.
+    x: Vec<f64>,
+    mark: Vec<bool>,
+}
+
+impl SparseForward {
+    /// The solver for the supernodal factor of `symbolic` (`None` for a
+    /// simplicial one); `dofs[i]` is the full-DOF index of free unknown `i`
+    /// and `n_dofs` the full DOF count.
+    pub fn new(symbolic: &SymbolicCholesky<usize>, dofs: &[usize], n_dofs: usize) -> Option<Self> {
+        let SymbolicCholeskyRaw::Supernodal(sn) = symbolic.raw() else {
+            return None;
+        };
+        let perm = symbolic.perm().map(|p| p.arrays().0);
+        let mut col_of = vec![usize::MAX; n_dofs];
+        for col in 0..sn.nrows() {
+            col_of[dofs[perm.map_or(col, |f| f[col])]] = col;
+        }
+        let ns = sn.n_supernodes();
+        let (begin, end) = (sn.supernode_begin(), sn.supernode_end());
+        let val_ptr = sn.col_ptr_for_val();
+        let snode_of = snode_of_columns(sn);
+        let snodes: Vec<Snode> = (0..ns)
+            .map(|s| Snode {
+                off: begin[s],
+                ncols: end[s] - begin[s],
+                val: val_ptr[s],
+                pat: sn.supernode(s).pattern().iter().map(|&r| r as u32).collect(),
+            })
+            .collect();
+        let parent = snodes
+            .iter()
+            .map(|s| s.pat.first().map_or(usize::MAX, |&r| snode_of[r as usize]))
+            .collect();
+        Some(Self {
+            col_of,
+            snode_of,
+            parent,
+            snodes,
+            x: Vec::new(),
+            mark: Vec::new(),
+        })
+    }
+
+    /// `G[a][b] = b_a^T A^-1 b_b` (row-major, `k x k`, symmetric) for the
+    /// right-hand sides `rhs[a]`, each given by its non-zeros `(full DOF,
+    /// value)` (entries at constrained DOFs ignored), with the factor values
+    /// `l` of `P A P^T = L L^T`. The supernodes on the union of the columns'
+    /// paths are eliminated in order, each for every column whose part
+    /// there is not zero (skipping a zero part is exact), so a supernode's
+    /// values are read from memory once for all columns.
+    pub fn gram(&mut self, l: &[f64], rhs: &[Vec<(usize, f64)>]) -> Vec<f64> {
+        let k = rhs.len();
+        let nf = self.snode_of.len();
+        self.mark.resize(self.snodes.len(), false);
+        // Column-major `nf x k`; zero between calls.
+        self.x.resize(nf * k, 0.0);
+        let mut touched = Vec::new();
+        for (q, b) in rhs.iter().enumerate() {
+            for &(dof, v) in b {
+                let col = self.col_of[dof];
+                if col == usize::MAX {
+                    continue;
+                }
+                self.x[q * nf + col] += v;
+                let mut s = self.snode_of[col];
+                while s != usize::MAX && !self.mark[s] {
+                    self.mark[s] = true;
+                    touched.push(s);
+                    s = self.parent[s];
+                }
+            }
+        }
+        // Parents come after their children in faer's numbering.
+        touched.sort_unstable();
+        let (mut xs, mut upd) = (Vec::new(), Vec::new());
+        for &s in &touched {
+            self.mark[s] = false;
+            let sn = &self.snodes[s];
+            let (c, p) = (sn.ncols, sn.pat.len());
+            // The columns with a non-zero part here, gathered as a dense
+            // `c x active` block: X_s = L_ss^-1 X_s, then
+            // X_pat -= L_ps X_s (faer's blocked kernels, sequential).
+            let active: Vec<usize> = (0..k)
+                .filter(|&q| self.x[q * nf + sn.off..q * nf + sn.off + c].iter().any(|&v| v != 0.0))
+                .collect();
+            if active.is_empty() {
+                continue;
+            }
+            let ka = active.len();
+            xs.clear();
+            for &q in &active {
+                xs.extend_from_slice(&self.x[q * nf + sn.off..q * nf + sn.off + c]);
+            }
+            let m = c + p;
+            let lv = faer::MatRef::from_column_major_slice(&l[sn.val..sn.val + m * c], m, c);
+            let mut xm = faer::MatMut::from_column_major_slice_mut(&mut xs, c, ka);
+            faer::linalg::triangular_solve::solve_lower_triangular_in_place(
+                lv.subrows(0, c),
+                xm.as_mut(),
+                faer::Par::Seq,
+            );
+            upd.clear();
+            upd.resize(p * ka, 0.0);
+            faer::linalg::matmul::matmul(
+                faer::MatMut::from_column_major_slice_mut(&mut upd, p, ka),
+                faer::Accum::Replace,
+                lv.subrows(c, p),
+                xm.as_ref(),
+                1.0,
+                faer::Par::Seq,
+            );
+            for (i, &q) in active.iter().enumerate() {
+                let xq = &mut self.x[q * nf..(q + 1) * nf];
+                xq[sn.off..sn.off + c].copy_from_slice(&xs[i * c..(i + 1) * c]);
+                for (&r, &u) in sn.pat.iter().zip(&upd[i * p..(i + 1) * p]) {
+                    xq[r as usize] -= u;
+                }
+            }
+        }
+        let ys: Vec<Vec<(usize, Vec<f64>)>> = self
+            .x
+            .chunks_exact_mut(nf)
+            .take(k)
+            .map(|xq| {
+                touched
+                    .iter()
+                    .map(|&s| {
+                        let sn = &self.snodes[s];
+                        let range = sn.off..sn.off + sn.ncols;
+                        let v = xq[range.clone()].to_vec();
+                        xq[range].fill(0.0);
+                        (sn.off, v)
+                    })
+                    .collect()
+            })
+            .collect();
+        // G = Y^T Y, Y dense over the union of the touched supernodes'
+        // columns (one gemm; the upper triangle mirrored so G is exactly
+        // symmetric).
+        let mut offs: Vec<(usize, usize)> = ys.iter().flatten().map(|(off, v)| (*off, v.len())).collect();
+        offs.sort_unstable();
+        offs.dedup();
+        let mut row_of = vec![0usize; nf];
+        let mut rows = 0;
+        for &(off, len) in &offs {
+            for (i, r) in row_of[off..off + len].iter_mut().enumerate() {
+                *r = rows + i;
+            }
+            rows += len;
+        }
+        let mut dense = nalgebra::DMatrix::<f64>::zeros(rows, k);
+        for (a, parts) in ys.iter().enumerate() {
+            for (off, v) in parts {
+                let r0 = row_of[*off];
+                dense.view_mut((r0, a), (v.len(), 1)).copy_from_slice(v);
+            }
+        }
+        let gram = dense.tr_mul(&dense);
+        let mut g = vec![0.0; k * k];
+        for a in 0..k {
+            for b in a..k {
+                g[a * k + b] = gram[(a, b)];
+                g[b * k + a] = gram[(a, b)];
+            }
+        }
+        g
+    }
 }

@@ -20,8 +20,10 @@
 //! * The LCP is solved through the Schur complement on the coupling points:
 //!   the tissue block's Cholesky factor (one per step, reused while no
 //!   Jacobian block changed) and the needle's banded factor give the
-//!   Delassus matrix `W` (one tissue and one needle solve per point and
-//!   axis), and every trial is a small dense solve.
+//!   Delassus matrix `W` (the tissue's share `Y^T Y` from sparse forward
+//!   solves `Y = L^-1 P J^T` along the factor's elimination-tree paths,
+//!   the needle's by one banded solve per point and axis), and every
+//!   trial is a small dense solve.
 //! * Or, with `lcp_solver = "cg"`, by the seed's solver: every trial a
 //!   projected Jacobi-preconditioned CG over the whole coupled system
 //!   ([`pcg`]), with no tissue factorization. The two agree to the CG's

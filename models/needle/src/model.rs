@@ -744,35 +744,59 @@ impl NeedleModel {
     }
 
     /// The Delassus matrix `W = J_n H^{-1} J_n^T + J_t A^{-1} J_t^T` in frame
-    /// components: one needle solve per point and axis, and the tissue's
-    /// solves for every point and axis in one blocked solve.
+    /// components. The tissue's share by sparse forward solves with its
+    /// factor (each column is a unit force spread over one tet's four
+    /// nodes: `W_t = Y^T Y`, `Y = L^-1 P J_t^T`, [`FemModel::gram`]), or,
+    /// where the factor is simplicial, all its columns in one blocked full
+    /// solve; the needle's by one banded solve per point and axis.
     fn delassus(&mut self, geo: &[Geometry]) -> DMatrix<f64> {
         let m = geo.len();
         let (nf, nt) = (self.rod.free_dofs(), 3 * self.fem.node_masses().len());
-        let mut w = DMatrix::zeros(3 * m, 3 * m);
-        let mut unused = Vec3::zeros();
-        // Column 3 i + d: the unit force along point i's frame axis d.
-        let mut yts = vec![0.0; nt * 3 * m];
-        for (i, gi) in geo.iter().enumerate() {
-            for d in 0..3 {
-                let yt = &mut yts[(3 * i + d) * nt..(3 * i + d + 1) * nt];
-                for a in 0..4 {
-                    (0..3).for_each(|c| yt[3 * gi.tissue[a] + c] += gi.w[a] * gi.frame[d][c]);
+        // Column 3 i + d: the unit force along point i's frame axis d,
+        // on the tissue DOFs of its tet.
+        let columns: Vec<Vec<(usize, f64)>> = geo
+            .iter()
+            .flat_map(|gi| {
+                (0..3).map(move |d| {
+                    (0..4)
+                        .flat_map(|a| (0..3).map(move |c| (3 * gi.tissue[a] + c, gi.w[a] * gi.frame[d][c])))
+                        .collect()
+                })
+            })
+            .collect();
+        let mut w = match self.fem.gram(&columns) {
+            Some(g) => DMatrix::from_row_slice(3 * m, 3 * m, &g),
+            None => {
+                let mut w = DMatrix::zeros(3 * m, 3 * m);
+                let mut yts = vec![0.0; nt * 3 * m];
+                for (col, entries) in columns.iter().enumerate() {
+                    for &(dof, v) in entries {
+                        yts[col * nt + dof] += v;
+                    }
                 }
+                self.fem.solve_linear_many(&mut yts, 3 * m);
+                for col in 0..3 * m {
+                    let yt = &yts[col * nt..(col + 1) * nt];
+                    for (j, gj) in geo.iter().enumerate() {
+                        let u = Self::tissue_motion(gj, yt);
+                        for r in 0..3 {
+                            w[(3 * j + r, col)] = gj.frame[r].dot(&u);
+                        }
+                    }
+                }
+                w
             }
-        }
-        self.fem.solve_linear_many(&mut yts, 3 * m);
+        };
+        let mut unused = Vec3::zeros();
         for (i, gi) in geo.iter().enumerate() {
             for d in 0..3 {
-                let e = gi.frame[d];
                 let mut yn = vec![0.0; nf];
-                self.add_needle(&gi.needle, &e, &mut yn, &mut unused);
+                self.add_needle(&gi.needle, &gi.frame[d], &mut yn, &mut unused);
                 self.rod.solve_linear(&mut yn);
-                let yt = &yts[(3 * i + d) * nt..(3 * i + d + 1) * nt];
                 for (j, gj) in geo.iter().enumerate() {
-                    let u = self.needle_motion(&gj.needle, &yn) + Self::tissue_motion(gj, yt);
+                    let u = self.needle_motion(&gj.needle, &yn);
                     for r in 0..3 {
-                        w[(3 * j + r, 3 * i + d)] = gj.frame[r].dot(&u);
+                        w[(3 * j + r, 3 * i + d)] += gj.frame[r].dot(&u);
                     }
                 }
             }

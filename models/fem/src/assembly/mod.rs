@@ -22,7 +22,7 @@
 
 use crate::element::UPPER;
 use crate::material::M3;
-use crate::supernodal::SplitSolve;
+use crate::supernodal::{SparseForward, SplitSolve};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{
@@ -265,6 +265,9 @@ struct CholState {
     /// The two-way cut of the supernodal factor for the `f32` solves
     /// (`None` for a simplicial factor: faer's solve).
     split: Option<SplitSolve>,
+    /// Sparse forward solves of the supernodal factor (`None` for a
+    /// simplicial one).
+    sparse: Option<SparseForward>,
 }
 
 impl System {
@@ -406,6 +409,16 @@ impl System {
             });
     }
 
+    /// `G[a][b] = b_a^T A^-1 b_b` (row-major `k x k`) for right-hand sides
+    /// given by their non-zeros `(full DOF, value)` (constrained DOFs
+    /// ignored), by sparse forward solves with the cached supernodal factor
+    /// ([`SparseForward`]); `None` without a valid supernodal factor (then
+    /// solve the columns in full, [`Self::solve_cholesky_many`]).
+    pub fn gram(&mut self, rhs: &[Vec<(usize, f64)>]) -> Option<Vec<f64>> {
+        let c = self.chol.as_mut().filter(|c| c.valid)?;
+        Some(c.sparse.as_mut()?.gram(&c.l, rhs))
+    }
+
     /// Whether a valid numeric factorization is cached.
     pub fn has_factorization(&self) -> bool {
         self.chol.as_ref().is_some_and(|c| c.valid)
@@ -483,6 +496,7 @@ impl System {
                 l32: Vec::new(),
                 rhs32: vec![0.0; self.dofs.len()],
                 split: SplitSolve::new(&symbolic, &self.dofs),
+                sparse: SparseForward::new(&symbolic, &self.dofs, self.free.len()),
                 symbolic,
             });
         }

@@ -136,6 +136,14 @@ impl FemModel {
         self.sys.solve_cholesky_many(b, k);
     }
 
+    /// `b_a^T A^-1 b_b` for every pair of sparse right-hand sides (non-zeros
+    /// `(DOF, value)`), row-major, with the step's factor by sparse forward
+    /// solves; `None` where the factor is not supernodal (then use
+    /// [`Self::solve_linear_many`]).
+    pub fn gram(&mut self, rhs: &[Vec<(usize, f64)>]) -> Option<Vec<f64>> {
+        self.sys.gram(rhs)
+    }
+
     /// Whether DOF `d` (`3 * node + axis`) is free.
     pub fn is_free(&self, d: usize) -> bool {
         self.sys.free[d]
