@@ -504,42 +504,19 @@ impl SparseForward {
                 }
             }
         }
-        let ys: Vec<Vec<(usize, Vec<f64>)>> = self
-            .x
-            .chunks_exact_mut(nf)
-            .take(k)
-            .map(|xq| {
-                touched
-                    .iter()
-                    .map(|&s| {
-                        let sn = &self.snodes[s];
-                        let range = sn.off..sn.off + sn.ncols;
-                        let v = xq[range.clone()].to_vec();
-                        xq[range].fill(0.0);
-                        (sn.off, v)
-                    })
-                    .collect()
-            })
-            .collect();
-        // G = Y^T Y, Y dense over the union of the touched supernodes'
-        // columns (one gemm; the upper triangle mirrored so G is exactly
-        // symmetric).
-        let mut offs: Vec<(usize, usize)> = ys.iter().flatten().map(|(off, v)| (*off, v.len())).collect();
-        offs.sort_unstable();
-        offs.dedup();
-        let mut row_of = vec![0usize; nf];
-        let mut rows = 0;
-        for &(off, len) in &offs {
-            for (i, r) in row_of[off..off + len].iter_mut().enumerate() {
-                *r = rows + i;
-            }
-            rows += len;
-        }
+        // G = Y^T Y, Y dense over the touched supernodes' columns (in
+        // order: one gemm; the upper triangle mirrored so G is exactly
+        // symmetric); `x` is left zero for the next call.
+        let rows: usize = touched.iter().map(|&s| self.snodes[s].ncols).sum();
         let mut dense = nalgebra::DMatrix::<f64>::zeros(rows, k);
-        for (a, parts) in ys.iter().enumerate() {
-            for (off, v) in parts {
-                let r0 = row_of[*off];
-                dense.view_mut((r0, a), (v.len(), 1)).copy_from_slice(v);
+        for (xq, mut col) in self.x.chunks_exact_mut(nf).zip(dense.column_iter_mut()) {
+            let mut r0 = 0;
+            for &s in &touched {
+                let sn = &self.snodes[s];
+                let range = sn.off..sn.off + sn.ncols;
+                col.rows_mut(r0, sn.ncols).copy_from_slice(&xq[range.clone()]);
+                xq[range].fill(0.0);
+                r0 += sn.ncols;
             }
         }
         let gram = dense.tr_mul(&dense);

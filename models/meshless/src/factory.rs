@@ -96,10 +96,8 @@ pub fn seed_dt(scene: &Scene) -> Option<f64> {
         .flat_map(|e| (0..4).flat_map(move |a| (a + 1..4).map(move |b| (e[a], e[b]))))
         .map(|(a, b)| (t.mesh.nodes[a] - t.mesh.nodes[b]).norm())
         .fold(f64::INFINITY, f64::min);
-    let (e, nu, rho) = (t.material.youngs_modulus, t.material.poisson_ratio, t.material.density);
-    let lambda = e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
-    let mu = e / (2.0 * (1.0 + nu));
-    let dt = SEED_COURANT_FRACTION * h_min / ((lambda + 2.0 * mu) / rho).sqrt();
+    let (mu, lambda) = surgbench_core::material::lame(t.material.youngs_modulus, t.material.poisson_ratio);
+    let dt = SEED_COURANT_FRACTION * h_min / ((lambda + 2.0 * mu) / t.material.density).sqrt();
     (dt.is_finite() && dt > 0.0).then_some(dt)
 }
 

@@ -303,8 +303,14 @@ impl NeedleModel {
             .chain(body.regions.iter().map(|r| r.cutting_force.unwrap_or(base)))
             .collect();
         let (_, of) = body.tet_materials();
-        self.cut_of_tet = of.iter().map(|&k| self.material_cuts[k]).collect();
+        self.set_cuts(&of);
         self
+    }
+
+    /// The cutting force of every tet from its material index (`labels`,
+    /// as `TissueBody::tet_materials` numbers them; empty: uniform).
+    fn set_cuts(&mut self, labels: &[usize]) {
+        self.cut_of_tet = labels.iter().map(|&k| self.material_cuts[k]).collect();
     }
 
     /// The force (N) the tip needs to cut where its channel ends.
@@ -499,7 +505,7 @@ impl NeedleModel {
         if let Some(built) = &rm.labels {
             let labels = built.labels(&rm.body.mesh);
             BuiltLabels::relabel(&mut rm.body, &labels);
-            self.cut_of_tet = labels.iter().map(|&k| self.material_cuts[k]).collect();
+            self.set_cuts(&labels);
         }
         let mesh = &rm.body.mesh;
         let before = self.fem.elastic_energy();
