@@ -265,8 +265,9 @@ struct CholState {
     /// The two-way cut of the supernodal factor for the `f32` solves
     /// (`None` for a simplicial factor: faer's solve).
     split: Option<SplitSolve>,
-    /// Sparse forward solves of the supernodal factor (`None` for a
-    /// simplicial one).
+    /// Sparse forward solves of the supernodal factor, built on the first
+    /// [`System::gram`] (`None` before it, and for a simplicial factor):
+    /// solves that never ask for one do not pay for it.
     sparse: Option<SparseForward>,
 }
 
@@ -416,6 +417,9 @@ impl System {
     /// solve the columns in full, [`Self::solve_cholesky_many`]).
     pub fn gram(&mut self, rhs: &[Vec<(usize, f64)>]) -> Option<Vec<f64>> {
         let c = self.chol.as_mut().filter(|c| c.valid)?;
+        if c.sparse.is_none() {
+            c.sparse = SparseForward::new(&c.symbolic, &self.dofs, self.free.len());
+        }
         Some(c.sparse.as_mut()?.gram(&c.l, rhs))
     }
 
@@ -496,7 +500,7 @@ impl System {
                 l32: Vec::new(),
                 rhs32: vec![0.0; self.dofs.len()],
                 split: SplitSolve::new(&symbolic, &self.dofs),
-                sparse: SparseForward::new(&symbolic, &self.dofs, self.free.len()),
+                sparse: None,
                 symbolic,
             });
         }
