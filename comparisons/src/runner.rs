@@ -341,6 +341,9 @@ struct Repeat {
     /// The scenario's metrics of `last` with this repeat's run-wide sums
     /// (`None` when `last` is not finite).
     errors: Option<BTreeMap<String, f64>>,
+    /// The scenario's measured points in `last` (empty when it has none or
+    /// `last` is not finite).
+    markers: Vec<surgbench_reports::Marker>,
 }
 
 impl Repeat {
@@ -363,6 +366,7 @@ impl Repeat {
             series: Vec::new(),
             last: first,
             errors: None,
+            markers: Vec::new(),
         }
     }
 }
@@ -476,6 +480,7 @@ fn run_repeat(
     }
     if rep.last.is_finite() {
         rep.errors = Some(scorer.score(&rep.last));
+        rep.markers = scorer.markers(&rep.last);
     }
     rep
 }
@@ -581,6 +586,7 @@ pub fn run_checked(
     s.series = rep.series;
     s.final_state = final_state(&rep.last);
     s.reference_centreline = run.reference_centreline().to_vec();
+    s.markers = rep.markers;
     Ok(s)
 }
 

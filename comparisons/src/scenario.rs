@@ -12,6 +12,7 @@ use surgbench_core::{ControlTimeline, Family, Fidelity, Observation, Scene};
 
 pub use crate::error::UsageError;
 pub use crate::user_mesh::{MeshKind, UserMesh};
+pub use surgbench_reports::Marker;
 
 /// Admissible range of a parameter.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -279,6 +280,14 @@ pub trait Scorer {
         let _ = obs;
         None
     }
+    /// For scenes scored at measured material points (the Truth Cube's
+    /// beads): each point at rest, in `obs` and in the reference, which the
+    /// run writes to `markers.csv` and the report maps; empty (the default)
+    /// for the others.
+    fn markers(&self, obs: &Observation) -> Vec<Marker> {
+        let _ = obs;
+        Vec::new()
+    }
 }
 
 impl<F: Fn(&Observation) -> Metrics> Scorer for F {
@@ -300,11 +309,28 @@ pub trait Reference: Send + Sync {
 pub trait Pointwise: Send + Sync {
     /// Error metrics of `obs` against the reference.
     fn score(&self, obs: &Observation) -> Metrics;
+    /// As [`Scorer::markers`]: the measured points of `obs`, if any.
+    fn markers(&self, obs: &Observation) -> Vec<Marker> {
+        let _ = obs;
+        Vec::new()
+    }
+}
+
+/// The scorer of a [`Pointwise`] reference.
+struct PointwiseScorer<'a, T>(&'a T);
+
+impl<T: Pointwise> Scorer for PointwiseScorer<'_, T> {
+    fn score(&self, obs: &Observation) -> Metrics {
+        self.0.score(obs)
+    }
+    fn markers(&self, obs: &Observation) -> Vec<Marker> {
+        self.0.markers(obs)
+    }
 }
 
 impl<T: Pointwise> Reference for T {
     fn scorer<'a>(&'a self, _scene: &'a Scene) -> Box<dyn Scorer + 'a> {
-        Box::new(|obs: &Observation| self.score(obs))
+        Box::new(PointwiseScorer(self))
     }
 }
 

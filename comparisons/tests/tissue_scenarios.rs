@@ -608,6 +608,22 @@ fn truth_cube_scores_a_resting_cube_as_the_measured_motion_and_affine_fields_exa
             m["rms_bead_error_m"]
         );
         assert!((m["rms_bead_error_aligned_m"] - aligned).abs() < 1e-12);
+        // The markers the run writes for the report's bead map: every bead,
+        // at rest, mapped and measured, giving back the same RMS.
+        let obs = observe(&run, |x| a * x);
+        let marks = run.scorer().markers(&obs);
+        assert_eq!(marks.len(), f.beads[0].len());
+        let mut sum = 0.0;
+        for ((mk, b0), bs) in marks.iter().zip(&f.beads[0]).zip(&f.beads[level]) {
+            let (rest, model, meas) = (Vec3::from(mk.rest), Vec3::from(mk.model), Vec3::from(mk.reference));
+            assert_eq!((rest, meas), (*b0, *bs));
+            // Barycentric round-off, as above.
+            assert!((model - a * b0).norm() < 1e-15, "{model:?} vs {:?}", a * b0);
+            sum += (model - meas).norm_squared();
+        }
+        assert!(((sum / n).sqrt() - m["rms_bead_error_m"]).abs() < 1e-15);
+        // No tissue of the scene's size: no markers (nothing to map).
+        assert!(run.scorer().markers(&Observation::default()).is_empty());
     }
     let e = TRUTH_CUBE
         .instantiate(&params(&TRUTH_CUBE, &[("strain_level", 1.5)]))

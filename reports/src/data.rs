@@ -698,6 +698,19 @@ pub fn read_final_positions(path: &Path, body: usize) -> Result<Vec<[f64; 3]>, R
     Ok(nodes.into_iter().map(|(_, x)| x).collect())
 }
 
+/// A run's `markers.csv` ([`crate::MARKER_COLUMNS`], m): the scenario's
+/// measured points at rest, in the model and in the reference.
+pub fn read_markers(path: &Path) -> Result<Vec<crate::Marker>, ReportError> {
+    Ok(read_columns(path, crate::MARKER_COLUMNS)?
+        .into_iter()
+        .map(|r| crate::Marker {
+            rest: [r[0], r[1], r[2]],
+            model: [r[3], r[4], r[5]],
+            reference: [r[6], r[7], r[8]],
+        })
+        .collect())
+}
+
 /// A run's `reference_centreline.csv` (`x,y,z` in m, base to tip): the
 /// reference shape of the rod at the end of the run.
 pub fn read_centreline(path: &Path) -> Result<Vec<[f64; 3]>, ReportError> {

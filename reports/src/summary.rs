@@ -262,6 +262,23 @@ pub struct NodeState {
     pub x: [f64; 3],
 }
 
+/// A material point the scenario's reference measures (a Truth Cube bead):
+/// where it starts, where the model's final state puts it and where the
+/// reference has it (m). A row of a run's `markers.csv`, which the report
+/// maps the per-point errors from.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Marker {
+    /// Rest position (m).
+    pub rest: [f64; 3],
+    /// Final position in the model (m).
+    pub model: [f64; 3],
+    /// Final position in the reference (m).
+    pub reference: [f64; 3],
+}
+
+/// The columns of `markers.csv`, in order.
+pub const MARKER_COLUMNS: [&str; 9] = ["x0", "y0", "z0", "x", "y", "z", "ref_x", "ref_y", "ref_z"];
+
 /// One fidelity knob of a run as `summary.json` records it: a number, or a
 /// model's choice by name (`"solver": "cg"`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -328,6 +345,11 @@ pub struct RunSummary {
     /// when the scenario has one, e.g. a cantilever's elastica).
     #[serde(skip)]
     pub reference_centreline: Vec<[f64; 3]>,
+    /// The scenario's measured points at the end of the run (not in
+    /// `summary.json`: written to `markers.csv` when the scenario scores
+    /// points, e.g. the Truth Cube's beads).
+    #[serde(skip)]
+    pub markers: Vec<Marker>,
 }
 
 impl Deref for RunSummary {
@@ -346,8 +368,8 @@ impl DerefMut for RunSummary {
 
 impl RunSummary {
     /// Writes `summary.json`, `observables.csv`, `final_state.csv` and, when
-    /// the scenario has one, `reference_centreline.csv` into `dir` (which
-    /// must exist).
+    /// the scenario has them, `reference_centreline.csv` and `markers.csv`
+    /// into `dir` (which must exist).
     pub fn write_files(&self, dir: &Path) -> std::io::Result<()> {
         let json = serde_json::to_string_pretty(self).map_err(std::io::Error::other)?;
         std::fs::write(dir.join("summary.json"), json + "\n")?;
@@ -355,7 +377,24 @@ impl RunSummary {
         if !self.reference_centreline.is_empty() {
             self.write_centreline(&dir.join("reference_centreline.csv"))?;
         }
+        if !self.markers.is_empty() {
+            self.write_markers(&dir.join("markers.csv"))?;
+        }
         self.write_final_state(&dir.join("final_state.csv"))
+    }
+
+    fn write_markers(&self, path: &Path) -> std::io::Result<()> {
+        let mut f = BufWriter::new(File::create(path)?);
+        writeln!(f, "{}", MARKER_COLUMNS.join(","))?;
+        for m in &self.markers {
+            let cells: Vec<String> = [m.rest, m.model, m.reference]
+                .iter()
+                .flatten()
+                .map(|v| format!("{v:e}"))
+                .collect();
+            writeln!(f, "{}", cells.join(","))?;
+        }
+        f.flush()
     }
 
     fn write_centreline(&self, path: &Path) -> std::io::Result<()> {

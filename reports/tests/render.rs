@@ -299,6 +299,150 @@ fn convergence_without_an_order_says_why() {
     assert!(!md.contains(": p = "), "no slope is printed for these");
 }
 
+/// A knob the model sets per resolution (the meshless seed variant's dt,
+/// chosen per mesh level by a Courant rule) joins the runs of one variant
+/// into one curve with an order, while a knob swept at fixed resolution
+/// (two dt values at every segment count) still splits the curves.
+#[test]
+fn a_knob_that_follows_the_refinement_does_not_split_a_curve() {
+    let base = common::rows()
+        .into_iter()
+        .find(|r| r.model == "der" && r.status == Status::Ok)
+        .unwrap();
+    let mut rows = Vec::new();
+    let mut push = |model: &str, n: f64, fid: String, e: f64| {
+        let mut r = base.clone();
+        r.model = model.into();
+        r.segments = Some(n);
+        r.fidelity = fid;
+        r.run_dir = String::new();
+        r.metrics.insert("tip_error_rel".into(), e);
+        rows.push(r);
+    };
+    for n in [10.0, 20.0, 40.0] {
+        // Order 2 for the harness variant at a fixed dt, order 1 for the
+        // seed variant whose dt halves with every refinement.
+        push(
+            "meshless",
+            n,
+            format!("segments={n};dt=0.001;variant=harness"),
+            1.0 / (n * n),
+        );
+        push(
+            "meshless",
+            n,
+            format!("segments={n};dt={};variant=seed", 0.1 / n),
+            1.0 / n,
+        );
+        for dt in [1e-3, 5e-4] {
+            push("pbd-rod", n, format!("segments={n};dt={dt}"), dt / (n * n));
+        }
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    render(tmp.path(), &rows, &common::info()).unwrap();
+    let md = read(&tmp.path().join("report.md"));
+    let orders: Vec<&str> = md.lines().filter(|l| l.contains(": p = ")).collect();
+    let has = |model: &str, with: &str, p: &str| {
+        orders
+            .iter()
+            .any(|l| l.contains(&format!("{model}: p = {p}")) && l.contains("3 ok runs") && l.contains(with))
+    };
+    // Exact power laws: the least-squares order is the exponent to the printed digits.
+    assert!(has("meshless", "variant=harness", "2.00"), "{orders:#?}");
+    assert!(has("meshless", "variant=seed", "1.00"), "{orders:#?}");
+    assert!(has("pbd-rod", "dt=0.001", "2.00"), "{orders:#?}");
+    assert!(has("pbd-rod", "dt=0.0005", "2.00"), "{orders:#?}");
+    assert_eq!(orders.len(), 4, "one order per curve: {orders:#?}");
+    assert!(
+        md.contains("meshless: dt takes one value per segments among runs otherwise alike"),
+        "the merge is explained"
+    );
+    assert!(
+        !md.contains("pbd-rod: dt takes one value"),
+        "a swept dt is not a follower"
+    );
+}
+
+/// Issue 22, item 5: a scene scored at measured points (the Truth Cube's
+/// beads) gets a point-error figure from each best ok run's `markers.csv`:
+/// the layer profile and a map classed by the scene's accuracy target.
+#[test]
+fn measured_points_get_a_layer_profile_and_a_map() {
+    let base = common::rows()
+        .into_iter()
+        .find(|r| r.model == "der" && r.status == Status::Ok)
+        .unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let mut rows = Vec::new();
+    for (model, scale) in [("fem", 1.0), ("meshless", 2.0)] {
+        let mut r = base.clone();
+        r.scenario = "truth-cube".into();
+        r.family = "tissue".into();
+        r.model = model.into();
+        r.segments = None;
+        r.mesh_level = Some(1.0);
+        r.fidelity = "mesh_level=1".into();
+        r.primary_error = "rms_bead_error_m".into();
+        r.metrics = [("rms_bead_error_m".to_string(), 1e-3 * scale)].into();
+        r.run_dir = format!("runs/{model}");
+        // A 3 x 3 x 3 lattice, 10 mm apart, each point off by scale x its
+        // layer's height in mm (1, 2, 3 mm for fem).
+        let mut text = format!("{}\n", surgbench_reports::MARKER_COLUMNS.join(","));
+        for i in 0..27 {
+            let p = [(i % 3) as f64 * 0.01, (i / 3 % 3) as f64 * 0.01, (i / 9) as f64 * 0.01];
+            let e = scale * 1e-3 * (i / 9 + 1) as f64;
+            text.push_str(&format!(
+                "{},{},{},{},{},{},{},{},{}\n",
+                p[0],
+                p[1],
+                p[2],
+                p[0] + e,
+                p[1],
+                p[2],
+                p[0],
+                p[1],
+                p[2]
+            ));
+        }
+        fs::create_dir_all(dir.join(&r.run_dir)).unwrap();
+        fs::write(dir.join(&r.run_dir).join("markers.csv"), text).unwrap();
+        rows.push(r);
+    }
+    let mut info = common::info();
+    info.targets.insert(
+        "truth-cube".into(),
+        surgbench_reports::AccuracyTarget {
+            metric: "rms_bead_error_m".into(),
+            value: 1e-3,
+            why: "test".into(),
+        },
+    );
+    render(dir, &rows, &info).unwrap();
+    let svg = read(&dir.join("plots/truth-cube-points.svg"));
+    for label in [
+        "fem: central slice, 9 points",
+        "meshless: central slice, 9 points",
+        "error ≤ 0.5 mm",
+        "0.5 to 1 mm",
+        // The SVG escapes the ">".
+        "error &gt; 4 mm",
+    ] {
+        assert!(svg.contains(label), "points plot lacks {label:?}");
+    }
+    let md = read(&dir.join("report.md"));
+    assert!(
+        md.contains("classes of the accuracy target (rms\\_bead\\_error\\_m = 1 mm)"),
+        "the note names the class unit"
+    );
+    // The measured points never moved: their motion is zero in every layer.
+    assert!(md.contains("moves the layers by 0, 0, 0 mm RMS"), "motion for scale");
+    // A malformed markers.csv is named in a note, not a failed render.
+    fs::write(dir.join("runs/fem/markers.csv"), "x0,y0\n1,2\n").unwrap();
+    render(dir, &rows, &info).unwrap();
+    assert!(read(&dir.join("report.md")).contains("Point errors: none for fem"));
+}
+
 /// Issue 22, item 2: the summary shows each model by its best ok run (most
 /// accurate, then fastest), names its settings and counts the runs that
 /// were not ok; an unstable finest run is no longer the model's face.

@@ -31,6 +31,74 @@ fn other_knobs(r: &ResultRow, knob: Knob) -> String {
     parts.join(";")
 }
 
+/// A run's knobs as `(key, value)` pairs.
+type Knobs = Vec<(String, String)>;
+
+/// One run's other knobs as `(key, value)` pairs, in their recorded order.
+fn other_pairs(r: &ResultRow, knob: Knob) -> Knobs {
+    other_knobs(r, knob)
+        .split(';')
+        .filter(|kv| !kv.trim().is_empty())
+        .map(|kv| match kv.split_once('=') {
+            Some((k, v)) => (k.trim().to_string(), v.trim().to_string()),
+            None => (kv.trim().to_string(), String::new()),
+        })
+        .collect()
+}
+
+/// The other knobs of a model's runs that follow `knob` rather than define a
+/// curve: a knob whose value is the same for every run at one resolution and
+/// one setting of the remaining knobs (a model's `dt` chosen per mesh level
+/// by a Courant rule, say). Grouping by it would split one refinement study
+/// into single-point curves without an order.
+///
+/// Starts from every knob that takes two or more values and releases, one at
+/// a time, each that varies among runs agreeing on the resolution and on the
+/// knobs already released (named choices first, then by key), so a knob is
+/// called a follower only when the data cannot tell it from one.
+fn followers(runs: &[Knobs], res: &[f64]) -> Vec<String> {
+    let value = |run: &[(String, String)], key: &str| {
+        run.iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.clone())
+            .unwrap_or_default()
+    };
+    let mut keys: Vec<String> = runs.iter().flatten().map(|(k, _)| k.clone()).collect();
+    keys.sort();
+    keys.dedup();
+    let mut follow: Vec<String> = keys
+        .into_iter()
+        .filter(|k| {
+            let mut vals: Vec<String> = runs.iter().map(|r| value(r, k)).collect();
+            vals.sort();
+            vals.dedup();
+            vals.len() > 1
+        })
+        .collect();
+    // Named choices (`variant=seed`) are released before numbers.
+    follow.sort_by_key(|k| (runs.iter().all(|r| value(r, k).parse::<f64>().is_ok()), k.clone()));
+    loop {
+        let varies = |k: &String| {
+            let mut seen: BTreeMap<(u64, Vec<String>), String> = BTreeMap::new();
+            runs.iter().zip(res).any(|(run, n)| {
+                let cell: Vec<String> = run
+                    .iter()
+                    .filter(|(key, _)| !follow.contains(key))
+                    .map(|(key, v)| format!("{key}={v}"))
+                    .collect();
+                let v = value(run, k);
+                seen.entry((n.to_bits(), cell)).or_insert_with(|| v.clone()) != &v
+            })
+        };
+        match follow.iter().position(varies) {
+            Some(i) => {
+                follow.remove(i);
+            }
+            None => return follow,
+        }
+    }
+}
+
 fn knob_range(knob: Knob, ns: &[f64]) -> String {
     let lo = ns.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = ns.iter().copied().fold(f64::NEG_INFINITY, f64::max);
@@ -109,11 +177,29 @@ struct Curves {
 /// `knob` is the plotted one.
 fn model_curves(g: &Group, st: &Styles, own: &Own, knob: Knob, plotted: bool, sec: &mut Section, curves: &mut Curves) {
     let (model, _, ok) = own;
+    let pts: Vec<(f64, f64, Knobs)> = ok
+        .iter()
+        .filter_map(|r| Some((usable(knob.resolution(r))?, usable(g.err(r))?, other_pairs(r, knob))))
+        .collect();
+    let res: Vec<f64> = pts.iter().map(|p| p.0).collect();
+    let runs: Vec<Knobs> = pts.iter().map(|p| p.2.clone()).collect();
+    let follow = followers(&runs, &res);
     let mut groups: BTreeMap<String, Vec<(f64, f64)>> = BTreeMap::new();
-    for r in ok {
-        if let (Some(n), Some(e)) = (usable(knob.resolution(r)), usable(g.err(r))) {
-            groups.entry(other_knobs(r, knob)).or_default().push((n, e));
-        }
+    for (n, e, run) in pts {
+        let key: Vec<String> = run
+            .iter()
+            .filter(|(k, _)| !follow.contains(k))
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect();
+        groups.entry(key.join(";")).or_default().push((n, e));
+    }
+    if !follow.is_empty() {
+        sec.notes.push(format!(
+            "{model}: {} takes one value per {} among runs otherwise alike (it follows the refinement), so runs differing only in {} share one convergence curve.",
+            follow.join(", "),
+            knob.key(),
+            if follow.len() == 1 { "it" } else { "these" }
+        ));
     }
     let n_groups = groups.len();
     for (variant, (other, mut pts)) in groups.into_iter().enumerate() {

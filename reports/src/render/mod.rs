@@ -14,6 +14,7 @@ mod centreline;
 mod convergence;
 mod error_time;
 mod force_time;
+mod markers;
 mod pareto;
 mod stability;
 mod tables;
@@ -24,6 +25,7 @@ use centreline::centreline_figure;
 use convergence::convergence_figure;
 use error_time::error_time_figure;
 use force_time::{force_depth_figure, force_time_figure};
+use markers::markers_figure;
 use pareto::pareto_figure;
 use stability::stability_figure;
 use tables::page;
@@ -33,7 +35,7 @@ use tip_time::tip_time_figure;
 const PLOT_SIZE: (u32, u32) = (1100, 700);
 
 /// Renders the report for `rows` into `dir` (which normally already holds
-/// `results.csv`): `plots/<stem>-{pareto,convergence,error-time,tip-time,centreline,force-time,force-depth,stability}.{svg,png}` (tip-time where the runs recorded a reference trajectory, centreline for rod models, force-time where they recorded a reference force, force-depth where they also recorded the indenter's depth),
+/// `results.csv`): `plots/<stem>-{pareto,convergence,error-time,tip-time,centreline,force-time,force-depth,points,stability}.{svg,png}` (tip-time where the runs recorded a reference trajectory, centreline for rod models, force-time where they recorded a reference force, force-depth where they also recorded the indenter's depth, points where they wrote the scene's measured points to `markers.csv`),
 /// `report.md` and `index.html`. Returns every file written, plots first.
 ///
 /// `plots/` is owned by the renderer: stale `.svg`/`.png` files in it are
@@ -60,6 +62,7 @@ pub fn render(dir: &Path, rows: &[ResultRow], info: &RunInfo) -> Result<Vec<Path
             ("centreline", centreline_figure(dir, g, &styles, &mut sec)),
             ("force-time", force_time_figure(dir, g, &styles, &mut sec)),
             ("force-depth", force_depth_figure(dir, g, &styles, &mut sec)),
+            ("points", markers_figure(dir, g, &styles, info, &mut sec)),
             ("stability", stability_figure(g, &styles, &mut sec)),
         ];
         for (kind, fig) in figs {

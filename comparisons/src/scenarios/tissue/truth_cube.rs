@@ -4,7 +4,9 @@
 use super::*;
 use crate::datasets::load_truth_cube;
 use crate::params;
-use crate::scenario::{Declared, Inputs, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, UsageError};
+use crate::scenario::{
+    Declared, Inputs, Marker, ParamSet, ParamSpec, Pointwise, Range, ScenarioInfo, ScenarioRun, UsageError,
+};
 use surgbench_core::Mat3;
 use surgbench_core::io::truth_cube as phantom;
 use surgbench_core::{Family, Observation, TetMesh, Vec3};
@@ -144,12 +146,29 @@ params! {
 
 struct TruthRun {
     mesh: TetMesh,
+    /// Every bead's measured rest position, scene frame (m).
+    rest: Vec<Vec3>,
     /// Containing tet and weights of every bead's rest position.
     cells: Vec<(usize, [f64; 4])>,
     /// Measured bead positions at the scored level, scene frame (m).
     measured: Vec<Vec3>,
     /// Measured bead displacements' RMS at that level (m).
     data_rms: f64,
+}
+
+impl TruthRun {
+    /// Where the model's tissue `t` carries each bead (m): its rest
+    /// position's barycentric weights in the containing tet, applied to the
+    /// deformed nodes.
+    fn beads_in(&self, t: &TissueObs) -> Vec<Vec3> {
+        self.cells
+            .iter()
+            .map(|(e, w)| {
+                let tet = self.mesh.tets[*e];
+                (0..4).map(|k| t.nodes[tet[k]] * w[k]).sum::<Vec3>()
+            })
+            .collect()
+    }
 }
 
 impl Pointwise for TruthRun {
@@ -159,13 +178,10 @@ impl Pointwise for TruthRun {
             return m;
         };
         let err: Vec<Vec3> = self
-            .cells
+            .beads_in(t)
             .iter()
             .zip(&self.measured)
-            .map(|((e, w), want)| {
-                let tet = self.mesh.tets[*e];
-                (0..4).map(|k| t.nodes[tet[k]] * w[k]).sum::<Vec3>() - want
-            })
+            .map(|(got, want)| got - want)
             .collect();
         let n = err.len() as f64;
         let rms = (err.iter().map(|e| e.norm_squared()).sum::<f64>() / n).sqrt();
@@ -182,6 +198,23 @@ impl Pointwise for TruthRun {
         m.insert("rms_bead_error_aligned_m".into(), rms_aligned);
         common_metrics(&mut m, &self.mesh, t);
         m
+    }
+
+    fn markers(&self, obs: &Observation) -> Vec<Marker> {
+        let Some(t) = tissue_of(obs, &self.mesh) else {
+            return Vec::new();
+        };
+        let xyz = |v: &Vec3| [v.x, v.y, v.z];
+        self.beads_in(t)
+            .iter()
+            .zip(&self.rest)
+            .zip(&self.measured)
+            .map(|((got, rest), want)| Marker {
+                rest: xyz(rest),
+                model: xyz(got),
+                reference: xyz(want),
+            })
+            .collect()
     }
 }
 
@@ -248,6 +281,7 @@ fn build(p: &TruthParams, inputs: &Inputs) -> Result<ScenarioRun, UsageError> {
     let work = 4.0 * e * edge.powi(3) * strain * strain;
     let run = TruthRun {
         mesh,
+        rest: frame.beads[0].clone(),
         cells,
         measured,
         data_rms,
