@@ -54,6 +54,11 @@ const KEYS: &[FidelityKey] = &[
     )
     .at_least(0.0),
     FidelityKey::number(
+        "lazy_threshold",
+        "tissue Jacobian: rebuild a tet's warped stiffness R K0 R^T only once its rotation has turned more than this angle (rad) since the block was built; while no block changes the step keeps its factorization (default 0: every tet every step; a rotation rule, not the seed's Eq. 12 error bound)",
+    )
+    .at_least(0.0),
+    FidelityKey::number(
         "cg_tolerance",
         "lcp_solver=cg: relative residual each CG solve stops at (default 1e-8)",
     )
@@ -132,6 +137,7 @@ impl ModelFactory for NeedleFactory {
             integrator: Integrator::BackwardEuler,
             // Range declared on the key (KEYS), checked by `resolve`.
             threads: settings.number_or("threads", 2.0) as usize,
+            lazy_threshold: settings.number_or("lazy_threshold", 0.0),
             ..DynParams::default()
         };
         let fem =

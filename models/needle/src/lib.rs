@@ -56,8 +56,13 @@
 //! * [`reparam`]: Akima interpolation and the seed's edge resampling rule,
 //!   for reparameterizing the needle (not yet used by the model).
 //!
-//! Not yet (issues 17 and 18): the seed's lazy Jacobian rule, in-place
-//! matrix updates on remeshing, the needle's reparameterization.
+//! The tissue's lazy Jacobian is fem's rotation rule (`lazy_threshold`):
+//! a tet's warped stiffness is kept until its rotation has turned past the
+//! threshold, and the step's factorization while no block changed.
+//!
+//! Not yet (issues 17 and 18): the seed's own lazy rule (its Eq. 12 error
+//! bound), in-place matrix updates on remeshing, the needle's
+//! reparameterization.
 //!
 //! Units are SI: m, kg, s, N, Pa.
 
