@@ -496,9 +496,9 @@ fn summary_shows_the_best_ok_run_and_counts_the_rest() {
     }
 }
 
-/// Rod models' final shapes are drawn in side and top view, against the
-/// reference centreline their runs wrote; a run folder without its final
-/// state gives a note, not a failure.
+/// Rod models' (and coupled models') final shapes are drawn in side and
+/// top view, against the reference centreline their runs wrote; a run
+/// folder without its final state gives a note, not a failure.
 #[test]
 fn rod_centrelines_are_drawn_against_the_reference() {
     let tmp = tempfile::tempdir().unwrap();
@@ -528,6 +528,24 @@ fn rod_centrelines_are_drawn_against_the_reference() {
         md.contains("final rod centreline in side view (x–z), with the reference shape"),
         "{md}"
     );
+    // A coupled model's first body is its needle or catheter: drawn too;
+    // a tissue model's first body is no rod: not drawn.
+    for (family, drawn) in [("coupled", true), ("tissue", false)] {
+        let other: Vec<_> = rows
+            .iter()
+            .cloned()
+            .map(|mut r| {
+                r.family = family.into();
+                r
+            })
+            .collect();
+        render(dir, &other, &common::info()).unwrap();
+        assert_eq!(
+            dir.join("plots/cantilever-gravity-centreline.svg").is_file(),
+            drawn,
+            "{family}"
+        );
+    }
     // Without the final states: no plot, and the page says why per model.
     for r in rows.iter().filter(|r| r.status == Status::Ok) {
         fs::remove_file(dir.join(&r.run_dir).join("final_state.csv")).unwrap();

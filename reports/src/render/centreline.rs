@@ -31,7 +31,10 @@ pub(super) fn centreline_figure(dir: &Path, g: &Group, st: &Styles, sec: &mut Se
     let mut reference: Option<Vec<[f64; 3]>> = None;
     let mut curves = Vec::new();
     for r in best_ok_runs(g) {
-        if r.family != "rod" || r.run_dir.trim().is_empty() {
+        // Rod models, and the coupled ones whose first body is a rod (a
+        // needle in tissue, a catheter in a compliant vessel): the final
+        // needle is the path its tip cut.
+        if !matches!(r.family.as_str(), "rod" | "coupled") || r.run_dir.trim().is_empty() {
             continue;
         }
         let run = dir.join(&r.run_dir);

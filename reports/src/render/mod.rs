@@ -35,7 +35,7 @@ use tip_time::tip_time_figure;
 const PLOT_SIZE: (u32, u32) = (1100, 700);
 
 /// Renders the report for `rows` into `dir` (which normally already holds
-/// `results.csv`): `plots/<stem>-{pareto,convergence,error-time,tip-time,centreline,force-time,force-depth,points,stability}.{svg,png}` (tip-time where the runs recorded a reference trajectory, centreline for rod models, force-time where they recorded a reference force, force-depth where they also recorded the indenter's depth, points where they wrote the scene's measured points to `markers.csv`),
+/// `results.csv`): `plots/<stem>-{pareto,convergence,error-time,tip-time,centreline,force-time,force-depth,points,stability}.{svg,png}` (tip-time where the runs recorded a reference trajectory, centreline for rod models and the rod of coupled ones, force-time where they recorded a reference force, force-depth where they also recorded the indenter's depth, points where they wrote the scene's measured points to `markers.csv`),
 /// `report.md` and `index.html`. Returns every file written, plots first.
 ///
 /// `plots/` is owned by the renderer: stale `.svg`/`.png` files in it are
