@@ -344,6 +344,9 @@ struct Repeat {
     /// The scenario's measured points in `last` (empty when it has none or
     /// `last` is not finite).
     markers: Vec<surgbench_reports::Marker>,
+    /// The tip path in its bend plane at `last` (empty when the scene
+    /// scores none or `last` is not finite).
+    plane_path: Vec<surgbench_reports::PlanePoint>,
 }
 
 impl Repeat {
@@ -367,6 +370,7 @@ impl Repeat {
             last: first,
             errors: None,
             markers: Vec::new(),
+            plane_path: Vec::new(),
         }
     }
 }
@@ -481,6 +485,7 @@ fn run_repeat(
     if rep.last.is_finite() {
         rep.errors = Some(scorer.score(&rep.last));
         rep.markers = scorer.markers(&rep.last);
+        rep.plane_path = scorer.plane_path(&rep.last);
     }
     rep
 }
@@ -587,6 +592,7 @@ pub fn run_checked(
     s.final_state = final_state(&rep.last);
     s.reference_centreline = run.reference_centreline().to_vec();
     s.markers = rep.markers;
+    s.plane_path = rep.plane_path;
     Ok(s)
 }
 

@@ -12,7 +12,7 @@ use surgbench_core::{ControlTimeline, Family, Fidelity, Observation, Scene};
 
 pub use crate::error::UsageError;
 pub use crate::user_mesh::{MeshKind, UserMesh};
-pub use surgbench_reports::Marker;
+pub use surgbench_reports::{Marker, PlanePoint};
 
 /// Admissible range of a parameter.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -285,6 +285,14 @@ pub trait Scorer {
     /// run writes to `markers.csv` and the report maps; empty (the default)
     /// for the others.
     fn markers(&self, obs: &Observation) -> Vec<Marker> {
+        let _ = obs;
+        Vec::new()
+    }
+    /// For scenes scored on the shape of a tip path (a steered needle's):
+    /// the path up to `obs` in its bend plane with the best-fit arc the
+    /// scene scores it by, which the run writes to `tip_path.csv` and the
+    /// report plots; empty (the default) for the others.
+    fn plane_path(&self, obs: &Observation) -> Vec<PlanePoint> {
         let _ = obs;
         Vec::new()
     }

@@ -102,6 +102,22 @@ fn the_bevel_scorer_recovers_an_arcs_curvature_against_the_reference() {
         e["tip_path_error_m"]
     );
     assert!((e["tip_deflection_m"] - arc(0.06, x)).abs() < 1e-9);
+    // The path the run writes to tip_path.csv: every sample in the bend
+    // plane (z here), and from 2 mm deep (the scored window) the fitted
+    // arc's offset, which on an exact circle is the path's own.
+    let path = &sum.plane_path;
+    assert!(path.len() > 100, "{} samples", path.len());
+    for q in path {
+        assert!(
+            (q.s - if q.x > 0.0 { arc(0.06, q.x) } else { 0.0 }).abs() < 1e-12,
+            "{q:?}"
+        );
+        if q.x >= 2e-3 {
+            assert!((q.fit - q.s).abs() < 1e-9, "{q:?}");
+        } else {
+            assert!(q.fit.is_nan(), "{q:?}");
+        }
+    }
 }
 
 /// An S-curve: an arc of radius 50 mm towards +z, then from `JOIN` one of

@@ -711,6 +711,40 @@ pub fn read_markers(path: &Path) -> Result<Vec<crate::Marker>, ReportError> {
         .collect())
 }
 
+/// A run's `tip_path.csv` (`x,s,arc_s`, m): the tip path in its bend plane
+/// and the best-fit arc's offset (an empty `arc_s` outside the arc's
+/// window is NaN).
+pub fn read_plane_path(path: &Path) -> Result<Vec<crate::PlanePoint>, ReportError> {
+    let (mut rd, header) = open_csv(path)?;
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|h| h == name)
+            .ok_or_else(|| ReportError::parse(path, 1, name, "missing required column"))
+    };
+    let pos = [col("x")?, col("s")?, col("arc_s")?];
+    let mut out = Vec::new();
+    for rec in rd.records() {
+        let rec = rec.map_err(|e| ReportError::csv(path, e))?;
+        let line = rec.position().map(|p| p.line()).unwrap_or(0);
+        let mut v = [f64::NAN; 3];
+        for (k, name) in ["x", "s", "arc_s"].iter().enumerate() {
+            let cell = parse_f64(rec.get(pos[k]).unwrap_or("")).map_err(|m| ReportError::parse(path, line, name, m))?;
+            match (cell, k) {
+                (Some(x), _) => v[k] = x,
+                (None, 2) => {}
+                (None, _) => return Err(ReportError::parse(path, line, name, "empty value")),
+            }
+        }
+        out.push(crate::PlanePoint {
+            x: v[0],
+            s: v[1],
+            fit: v[2],
+        });
+    }
+    Ok(out)
+}
+
 /// A run's `reference_centreline.csv` (`x,y,z` in m, base to tip): the
 /// reference shape of the rod at the end of the run.
 pub fn read_centreline(path: &Path) -> Result<Vec<[f64; 3]>, ReportError> {

@@ -39,11 +39,13 @@ mod summary;
 pub use analysis::{NoOrder, OrderFit, fit_convergence, fit_order, pareto_front};
 pub use data::{
     AccuracyTarget, DEFAULT_BUDGETS_MS, FIXED_COLUMNS, OPTIONAL_COLUMNS, ResultRow, RunInfo, SERIES_COLUMNS, Series,
-    format_f64, read_centreline, read_final_positions, read_markers, read_results_csv, read_run_info, read_series,
-    row_cells, row_from_cells, write_results_csv, write_run_info,
+    format_f64, read_centreline, read_final_positions, read_markers, read_plane_path, read_results_csv, read_run_info,
+    read_series, row_cells, row_from_cells, write_results_csv, write_run_info,
 };
 pub use error::ReportError;
 pub use format::{fmt_sig, fmt_tick, fnv1a, log_ticks, short_settings};
 pub use haptic::{HAPTIC_COLUMNS, HapticRow, read_haptic_csv, write_haptic_csv};
 pub use render::{render, render_dir};
-pub use summary::{End, FidelityValue, MARKER_COLUMNS, Marker, NodeState, Outcome, RunSummary, Sample, Status, Trip};
+pub use summary::{
+    End, FidelityValue, MARKER_COLUMNS, Marker, NodeState, Outcome, PlanePoint, RunSummary, Sample, Status, Trip,
+};

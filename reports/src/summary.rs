@@ -276,6 +276,20 @@ pub struct Marker {
     pub reference: [f64; 3],
 }
 
+/// One point of a tip path in its bend plane (a row of a run's
+/// `tip_path.csv`): `x` along the insertion, `s` the lateral offset along
+/// the bend, and where the scene fits an arc there, that arc's `s` at the
+/// same `x` (m; NaN elsewhere).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PlanePoint {
+    /// Along the insertion (m).
+    pub x: f64,
+    /// Lateral offset in the bend plane (m).
+    pub s: f64,
+    /// The best-fit arc's offset at `x` (m), NaN outside its window.
+    pub fit: f64,
+}
+
 /// The columns of `markers.csv`, in order.
 pub const MARKER_COLUMNS: [&str; 9] = ["x0", "y0", "z0", "x", "y", "z", "ref_x", "ref_y", "ref_z"];
 
@@ -350,6 +364,11 @@ pub struct RunSummary {
     /// points, e.g. the Truth Cube's beads).
     #[serde(skip)]
     pub markers: Vec<Marker>,
+    /// The tip path in its bend plane at the end of the run (not in
+    /// `summary.json`: written to `tip_path.csv` when the scene scores a
+    /// path's shape, e.g. the steered needles).
+    #[serde(skip)]
+    pub plane_path: Vec<PlanePoint>,
 }
 
 impl Deref for RunSummary {
@@ -368,8 +387,8 @@ impl DerefMut for RunSummary {
 
 impl RunSummary {
     /// Writes `summary.json`, `observables.csv`, `final_state.csv` and, when
-    /// the scenario has them, `reference_centreline.csv` and `markers.csv`
-    /// into `dir` (which must exist).
+    /// the scenario has them, `reference_centreline.csv`, `markers.csv` and
+    /// `tip_path.csv` into `dir` (which must exist).
     pub fn write_files(&self, dir: &Path) -> std::io::Result<()> {
         let json = serde_json::to_string_pretty(self).map_err(std::io::Error::other)?;
         std::fs::write(dir.join("summary.json"), json + "\n")?;
@@ -380,7 +399,24 @@ impl RunSummary {
         if !self.markers.is_empty() {
             self.write_markers(&dir.join("markers.csv"))?;
         }
+        if !self.plane_path.is_empty() {
+            self.write_plane_path(&dir.join("tip_path.csv"))?;
+        }
         self.write_final_state(&dir.join("final_state.csv"))
+    }
+
+    fn write_plane_path(&self, path: &Path) -> std::io::Result<()> {
+        let mut f = BufWriter::new(File::create(path)?);
+        writeln!(f, "x,s,arc_s")?;
+        for p in &self.plane_path {
+            let fit = if p.fit.is_finite() {
+                format!("{:e}", p.fit)
+            } else {
+                String::new()
+            };
+            writeln!(f, "{:e},{:e},{fit}", p.x, p.s)?;
+        }
+        f.flush()
     }
 
     fn write_markers(&self, path: &Path) -> std::io::Result<()> {

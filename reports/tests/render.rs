@@ -363,29 +363,35 @@ fn a_knob_that_follows_the_refinement_does_not_split_a_curve() {
     );
 }
 
+/// An ok tissue-or-coupled run of `model` on `scenario` at mesh level
+/// `level`, its folder `runs/<dir>`, built from the synthetic der row.
+fn mesh_run(scenario: &str, family: &str, model: &str, level: u32, dir: &str) -> surgbench_reports::ResultRow {
+    let mut r = common::rows()
+        .into_iter()
+        .find(|r| r.model == "der" && r.status == Status::Ok)
+        .unwrap();
+    r.scenario = scenario.into();
+    r.family = family.into();
+    r.model = model.into();
+    r.segments = None;
+    r.mesh_level = Some(level.into());
+    r.fidelity = format!("mesh_level={level}");
+    r.run_dir = format!("runs/{dir}");
+    r
+}
+
 /// Issue 22, item 5: a scene scored at measured points (the Truth Cube's
 /// beads) gets a point-error figure from each best ok run's `markers.csv`:
 /// the layer profile and a map classed by the scene's accuracy target.
 #[test]
 fn measured_points_get_a_layer_profile_and_a_map() {
-    let base = common::rows()
-        .into_iter()
-        .find(|r| r.model == "der" && r.status == Status::Ok)
-        .unwrap();
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
     let mut rows = Vec::new();
     for (model, scale) in [("fem", 1.0), ("meshless", 2.0)] {
-        let mut r = base.clone();
-        r.scenario = "truth-cube".into();
-        r.family = "tissue".into();
-        r.model = model.into();
-        r.segments = None;
-        r.mesh_level = Some(1.0);
-        r.fidelity = "mesh_level=1".into();
+        let mut r = mesh_run("truth-cube", "tissue", model, 1, model);
         r.primary_error = "rms_bead_error_m".into();
         r.metrics = [("rms_bead_error_m".to_string(), 1e-3 * scale)].into();
-        r.run_dir = format!("runs/{model}");
         // A 3 x 3 x 3 lattice, 10 mm apart, each point off by scale x its
         // layer's height in mm (1, 2, 3 mm for fem).
         let mut text = format!("{}\n", surgbench_reports::MARKER_COLUMNS.join(","));
@@ -441,6 +447,45 @@ fn measured_points_get_a_layer_profile_and_a_map() {
     fs::write(dir.join("runs/fem/markers.csv"), "x0,y0\n1,2\n").unwrap();
     render(dir, &rows, &info).unwrap();
     assert!(read(&dir.join("report.md")).contains("Point errors: none for fem"));
+}
+
+/// A scene scored on a tip path's shape gets the path of every ok run in
+/// its bend plane with the run's fitted arc, from `tip_path.csv`.
+#[test]
+fn tip_paths_are_drawn_with_their_fitted_arcs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let mut rows = Vec::new();
+    for level in [0, 1] {
+        let r = mesh_run("needle-bevel", "coupled", "needle", level, &format!("level-{level}"));
+        let mut text = String::from("x,s,arc_s\n");
+        for k in 0..=30 {
+            let x = k as f64 * 5e-4;
+            let s = x * x * (level + 1) as f64;
+            // The arc is fitted from 2 mm on: empty before.
+            let fit = if x >= 2e-3 {
+                format!("{}", 0.99 * s)
+            } else {
+                String::new()
+            };
+            text.push_str(&format!("{x},{s},{fit}\n"));
+        }
+        fs::create_dir_all(dir.join(&r.run_dir)).unwrap();
+        fs::write(dir.join(&r.run_dir).join("tip_path.csv"), text).unwrap();
+        rows.push(r);
+    }
+    render(dir, &rows, &common::info()).unwrap();
+    let svg = read(&dir.join("plots/needle-bevel-tip-path.svg"));
+    for label in ["needle mesh_level=0", "needle mesh_level=1", "best-fit arc of each run"] {
+        assert!(svg.contains(label), "tip path plot lacks {label:?}");
+    }
+    assert!(read(&dir.join("report.md")).contains("tip path of 2 ok run(s) in the bend plane"));
+    // A malformed file is named in a note; the other run is still drawn.
+    fs::write(dir.join("runs/level-0/tip_path.csv"), "x,s\n1,2\n").unwrap();
+    render(dir, &rows, &common::info()).unwrap();
+    let md = read(&dir.join("report.md"));
+    assert!(md.contains("Tip path: none for needle mesh\\_level=0"), "note");
+    assert!(md.contains("tip path of 1 ok run(s)"));
 }
 
 /// Issue 22, item 2: the summary shows each model by its best ok run (most

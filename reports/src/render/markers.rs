@@ -8,7 +8,7 @@ use std::path::Path;
 
 use plotters::style::RGBColor;
 
-use super::{Group, Section, Styles, best_ok_runs, run_label};
+use super::{Group, Section, Styles, best_ok_runs, read_run_files, run_label};
 use crate::figure::{Axis, Figure, LegendEntry, Line, Look, Marker as Shape, Panel, SeriesSpec};
 use crate::format::fmt_sig;
 use crate::{Marker, RunInfo, read_markers};
@@ -139,25 +139,7 @@ pub(super) fn markers_figure(
     info: &RunInfo,
     sec: &mut Section,
 ) -> Option<(Figure, String)> {
-    let mut runs = Vec::new();
-    for r in best_ok_runs(g) {
-        if r.run_dir.trim().is_empty() {
-            continue;
-        }
-        let path = dir.join(&r.run_dir).join("markers.csv");
-        if !path.is_file() {
-            continue;
-        }
-        match read_markers(&path) {
-            Ok(ms) if !ms.is_empty() => runs.push((r, ms)),
-            Ok(_) => {}
-            Err(e) => sec.notes.push(format!(
-                "Point errors: none for {}: {}.",
-                run_label(r),
-                e.to_string().replace(&format!("{}/", dir.display()), "")
-            )),
-        }
-    }
+    let runs = read_run_files(dir, best_ok_runs(g), "markers.csv", read_markers, "Point errors", sec);
     let (unit, unit_why) = class_unit(g, info, &runs)?;
     // The points' own measured motion, for scale (the same for every run):
     // drawn beside the errors it would squeeze them against the axis.

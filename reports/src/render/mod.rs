@@ -18,6 +18,7 @@ mod markers;
 mod pareto;
 mod stability;
 mod tables;
+mod tip_path;
 mod tip_time;
 mod verdicts;
 
@@ -29,13 +30,14 @@ use markers::markers_figure;
 use pareto::pareto_figure;
 use stability::stability_figure;
 use tables::page;
+use tip_path::tip_path_figure;
 use tip_time::tip_time_figure;
 
 /// Size of single-panel plots (px): 770 px of chart + 330 px of legend.
 const PLOT_SIZE: (u32, u32) = (1100, 700);
 
 /// Renders the report for `rows` into `dir` (which normally already holds
-/// `results.csv`): `plots/<stem>-{pareto,convergence,error-time,tip-time,centreline,force-time,force-depth,points,stability}.{svg,png}` (tip-time where the runs recorded a reference trajectory, centreline for rod models and the rod of coupled ones, force-time where they recorded a reference force, force-depth where they also recorded the indenter's depth, points where they wrote the scene's measured points to `markers.csv`),
+/// `results.csv`): `plots/<stem>-{pareto,convergence,error-time,tip-time,tip-path,centreline,force-time,force-depth,points,stability}.{svg,png}` (tip-time where the runs recorded a reference trajectory, tip-path where they wrote the tip's path in its bend plane to `tip_path.csv`, centreline for rod models and the rod of coupled ones, force-time where they recorded a reference force, force-depth where they also recorded the indenter's depth, points where they wrote the scene's measured points to `markers.csv`),
 /// `report.md` and `index.html`. Returns every file written, plots first.
 ///
 /// `plots/` is owned by the renderer: stale `.svg`/`.png` files in it are
@@ -59,6 +61,7 @@ pub fn render(dir: &Path, rows: &[ResultRow], info: &RunInfo) -> Result<Vec<Path
             ("convergence", convergence_figure(g, &styles, &mut sec)),
             ("error-time", error_time_figure(dir, g, &styles, &mut sec)),
             ("tip-time", tip_time_figure(dir, g, &styles, &mut sec)),
+            ("tip-path", tip_path_figure(dir, g, &mut sec)),
             ("centreline", centreline_figure(dir, g, &styles, &mut sec)),
             ("force-time", force_time_figure(dir, g, &styles, &mut sec)),
             ("force-depth", force_depth_figure(dir, g, &styles, &mut sec)),
@@ -292,6 +295,39 @@ fn settings_label(r: &ResultRow) -> String {
     } else {
         crate::short_settings(&r.fidelity)
     }
+}
+
+/// Each of `runs` that wrote the run file `name` with at least one row,
+/// read by `read`; a file that does not read is named in a note starting
+/// with `what` (paths relative to the report), not a failed render.
+fn read_run_files<'a, T>(
+    dir: &Path,
+    runs: impl IntoIterator<Item = &'a ResultRow>,
+    name: &str,
+    read: impl Fn(&Path) -> Result<Vec<T>, ReportError>,
+    what: &str,
+    sec: &mut Section,
+) -> Vec<(&'a ResultRow, Vec<T>)> {
+    let mut out = Vec::new();
+    for r in runs {
+        if r.run_dir.trim().is_empty() {
+            continue;
+        }
+        let path = dir.join(&r.run_dir).join(name);
+        if !path.is_file() {
+            continue;
+        }
+        match read(&path) {
+            Ok(v) if !v.is_empty() => out.push((r, v)),
+            Ok(_) => {}
+            Err(e) => sec.notes.push(format!(
+                "{what}: none for {}: {}.",
+                run_label(r),
+                e.to_string().replace(&format!("{}/", dir.display()), "")
+            )),
+        }
+    }
+    out
 }
 
 fn run_label(r: &ResultRow) -> String {

@@ -27,7 +27,8 @@ use super::*;
 use crate::params;
 use crate::references::{TipTrajectory, cached_reference};
 use crate::scenario::{
-    Declared, Inputs, Metrics, ParamSet, ParamSpec, Range, Reference, ScenarioInfo, ScenarioRun, Scorer, Target,
+    Declared, Inputs, Metrics, ParamSet, ParamSpec, PlanePoint, Range, Reference, ScenarioInfo, ScenarioRun, Scorer,
+    Target,
 };
 use surgbench_core::{Family, NeedleTissue, Observation, Scene};
 
@@ -143,8 +144,9 @@ type TimedPath = Vec<(f64, f64, f64)>;
 /// positive when the centre lies towards +s) and the rms distance of the
 /// points from the circle (m); a straight path (the normal equations
 /// singular to rounding) has curvature 0 and its rms distance from the
-/// least-squares line. `None` for fewer than three points.
-fn fit_arc(pts: &[(f64, f64)]) -> Option<(f64, f64)> {
+/// least-squares line. `None` for fewer than three points. Third: the
+/// circle itself, `(x_c, s_c, r)` (m), where the fit is not a line.
+fn fit_arc(pts: &[(f64, f64)]) -> Option<(f64, f64, Option<[f64; 3]>)> {
     if pts.len() < 3 {
         return None;
     }
@@ -177,12 +179,12 @@ fn fit_arc(pts: &[(f64, f64)]) -> Option<(f64, f64)> {
     const SINGULAR: f64 = 1e-12;
     let sol = a.lu().solve(&b);
     let Some(sol) = sol.filter(|_| a.determinant().abs() > SINGULAR * a.norm().powi(3)) else {
-        return Some((0.0, line_rms()));
+        return Some((0.0, line_rms(), None));
     };
     let (xc, sc) = (-0.5 * sol[0], -0.5 * sol[1]);
     let r2 = xc * xc + sc * sc - sol[2];
     if !(r2 > 0.0) || !r2.is_finite() {
-        return Some((0.0, line_rms()));
+        return Some((0.0, line_rms(), None));
     }
     let r = r2.sqrt();
     let rms = (q
@@ -193,7 +195,20 @@ fn fit_arc(pts: &[(f64, f64)]) -> Option<(f64, f64)> {
         .sqrt();
     // Scaled back: radius r * scale; the centre's side of the points.
     let kappa = sc.signum() / (r * scale);
-    Some((kappa, rms * scale))
+    let circle = [cx + xc * scale, cs + sc * scale, r * scale];
+    Some((kappa, rms * scale, Some(circle)))
+}
+
+/// The `s` of `circle` (`(x_c, s_c, r)`, m) at `x` on the branch nearer
+/// `near`; NaN where the circle does not reach `x`.
+fn circle_at(circle: [f64; 3], x: f64, near: f64) -> f64 {
+    let [xc, sc, r] = circle;
+    let h = (r * r - (x - xc) * (x - xc)).sqrt();
+    if (sc + h - near).abs() <= (sc - h - near).abs() {
+        sc + h
+    } else {
+        sc - h
+    }
 }
 
 /// The local curvature of `path` at `x0`: the second derivative of the
@@ -317,6 +332,9 @@ struct PathShape {
     out_of_plane: f64,
     /// The last point's offset along the bend plane (m).
     deflection: f64,
+    /// The path in its bend plane with, inside each scored arc's window,
+    /// the best-fit arc's `s` at the same `x` (m).
+    plane: Vec<PlanePoint>,
 }
 
 impl SteeringRef {
@@ -331,12 +349,25 @@ impl SteeringRef {
         let (path, out_of_plane) = in_plane(tips, first[1])?;
         let mut curvature = Vec::new();
         let mut residual_rel = Vec::new();
+        let mut plane: Vec<PlanePoint> = path
+            .iter()
+            .map(|&(_, x, s)| PlanePoint { x, s, fit: f64::NAN })
+            .collect();
         for &[lo, hi] in &self.arcs {
             let pts = window(&path, lo, hi);
-            let Some((k, rms)) = fit_arc(&pts) else { continue };
+            let Some((k, rms, circle)) = fit_arc(&pts) else {
+                continue;
+            };
             let span = pts.iter().map(|p| p.1.abs()).fold(0.0, f64::max);
             curvature.push(k);
             residual_rel.push(if span > 0.0 { rms / span } else { 0.0 });
+            if let Some(c) = circle {
+                for (q, p) in plane.iter_mut().zip(&path) {
+                    if p.0 >= lo && p.0 <= hi && p.1 >= SCORE_FROM_DEPTH {
+                        q.fit = circle_at(c, q.x, q.s);
+                    }
+                }
+            }
         }
         let inflection = self.turn_at.zip(curvature.first()).and_then(|(t0, &k1)| {
             let xy: PlanePath = path.iter().map(|p| (p.1, p.2)).collect();
@@ -350,6 +381,7 @@ impl SteeringRef {
             inflection,
             out_of_plane,
             deflection: path.last().map_or(0.0, |p| p.2),
+            plane,
         })
     }
 }
@@ -424,6 +456,11 @@ impl Scorer for SteeringScorer<'_> {
             m.insert("inflection_error_m".into(), (x - xr).abs());
         }
         m
+    }
+
+    fn plane_path(&self, obs: &Observation) -> Vec<PlanePoint> {
+        let tips = &self.tips[..self.tips.partition_point(|s| s.0 <= obs.time)];
+        self.r.shape(tips).map(|shape| shape.plane).unwrap_or_default()
     }
 
     fn reference_tip_at(&self, t: f64) -> Option<[f64; 3]> {
@@ -640,17 +677,28 @@ mod tests {
     #[test]
     fn the_fit_recovers_an_exact_arc_and_its_side() {
         for side in [1.0, -1.0] {
-            let (k, rms) = fit_arc(&arc(0.05, side, 0.012, 200)).unwrap();
+            let (k, rms, circle) = fit_arc(&arc(0.05, side, 0.012, 200)).unwrap();
             // Exact data: the algebraic fit is exact to rounding.
             assert!((k - side / 0.05).abs() < 1e-9, "{k}");
             assert!(rms < 1e-12, "{rms}");
+            // The circle: centre (0, side r), radius r; it gives back each
+            // point's s on the branch through the points.
+            let [xc, sc, r] = circle.expect("an arc, not a line");
+            assert!(xc.abs() < 1e-12 && (sc - side * 0.05).abs() < 1e-12 && (r - 0.05).abs() < 1e-12);
+            for (x, s) in arc(0.05, side, 0.012, 7) {
+                assert!((circle_at([xc, sc, r], x, s) - s).abs() < 1e-12, "{x}");
+            }
         }
+        // Beyond the circle's reach: no offset.
+        assert!(circle_at([0.0, 0.05, 0.05], 0.06, 0.0).is_nan());
     }
 
     #[test]
     fn a_straight_path_has_zero_curvature() {
         let line: PlanePath = (0..50).map(|i| (i as f64 * 1e-4, 0.1 * i as f64 * 1e-4)).collect();
-        let (k, rms) = fit_arc(&line).unwrap();
+        let (k, rms, circle) = fit_arc(&line).unwrap();
+        // The normal equations are singular to rounding: the line's fit.
+        assert!(circle.is_none(), "{circle:?}");
         assert!(k.abs() < 1e-6, "{k}");
         assert!(rms < 1e-15, "{rms}");
     }
@@ -686,7 +734,7 @@ mod tests {
         // is located to a fraction of the grid (0.25 mm).
         assert!((x - x0).abs() < 0.1e-3, "{x}");
         let second: PlanePath = path.iter().copied().filter(|p| p.0 >= 0.007).collect();
-        let (k2, _) = fit_arc(&second).unwrap();
+        let (k2, _, _) = fit_arc(&second).unwrap();
         assert!((k2 * r + 1.0).abs() < 1e-6, "{k2}");
     }
 }
