@@ -263,28 +263,33 @@ fn static_speed_axis_is_time_to_solution() {
     );
 }
 
+/// An ok run of `model` at `n` segments with settings `fidelity`, scored
+/// `tip_error_rel = err`, without a run folder (from the synthetic der row).
+fn segment_run(model: &str, n: f64, fidelity: String, err: f64) -> surgbench_reports::ResultRow {
+    let mut r = common::rows()
+        .into_iter()
+        .find(|r| r.model == "der" && r.status == Status::Ok)
+        .unwrap();
+    r.model = model.into();
+    r.segments = Some(n);
+    r.fidelity = fidelity;
+    r.run_dir = String::new();
+    r.metrics.insert("tip_error_rel".into(), err);
+    r
+}
+
 /// Issue 22, item 4: two points and non-monotone errors give "no order"
 /// with the reason, never a slope (the chain-mail's 5.29 -> 0.00145 ->
 /// 0.862 had been printed as p = 1.31).
 #[test]
 fn convergence_without_an_order_says_why() {
-    let base = common::rows()
-        .into_iter()
-        .find(|r| r.model == "der" && r.status == Status::Ok)
-        .unwrap();
     let mut rows = Vec::new();
     for (model, pts) in [
         ("chainmail", vec![(10.0, 5.29), (20.0, 0.00145), (40.0, 0.862)]),
         ("pbd-rod", vec![(10.0, 1e-2), (20.0, 2.5e-3)]),
     ] {
         for (n, e) in pts {
-            let mut r = base.clone();
-            r.model = model.into();
-            r.segments = Some(n);
-            r.fidelity = format!("segments={n}");
-            r.run_dir = String::new();
-            r.metrics.insert("tip_error_rel".into(), e);
-            rows.push(r);
+            rows.push(segment_run(model, n, format!("segments={n}"), e));
         }
     }
     let tmp = tempfile::tempdir().unwrap();
@@ -305,20 +310,8 @@ fn convergence_without_an_order_says_why() {
 /// (two dt values at every segment count) still splits the curves.
 #[test]
 fn a_knob_that_follows_the_refinement_does_not_split_a_curve() {
-    let base = common::rows()
-        .into_iter()
-        .find(|r| r.model == "der" && r.status == Status::Ok)
-        .unwrap();
     let mut rows = Vec::new();
-    let mut push = |model: &str, n: f64, fid: String, e: f64| {
-        let mut r = base.clone();
-        r.model = model.into();
-        r.segments = Some(n);
-        r.fidelity = fid;
-        r.run_dir = String::new();
-        r.metrics.insert("tip_error_rel".into(), e);
-        rows.push(r);
-    };
+    let mut push = |model: &str, n: f64, fid: String, e: f64| rows.push(segment_run(model, n, fid, e));
     for n in [10.0, 20.0, 40.0] {
         // Order 2 for the harness variant at a fixed dt, order 1 for the
         // seed variant whose dt halves with every refinement.
