@@ -428,14 +428,11 @@ impl SparseForward {
         })
     }
 
-    /// `G[a][b] = b_a^T A^-1 b_b` (row-major, `k x k`, symmetric) for the
-    /// right-hand sides `rhs[a]`, each given by its non-zeros `(full DOF,
-    /// value)` (entries at constrained DOFs ignored), with the factor values
-    /// `l` of `P A P^T = L L^T`. The supernodes on the union of the columns'
-    /// paths are eliminated in order, each for every column whose part
-    /// there is not zero (skipping a zero part is exact), so a supernode's
-    /// values are read from memory once for all columns.
-    pub fn gram(&mut self, l: &[f64], rhs: &[Vec<(usize, f64)>]) -> Vec<f64> {
+    /// Forward-eliminate the columns `rhs` into `x` (column-major
+    /// `nf x k`): `Y = L^-1 P B` on the supernodes of the union of their
+    /// elimination-tree paths, returned in elimination order; every other
+    /// entry of `x` stays zero.
+    fn eliminate(&mut self, l: &[f64], rhs: &[Vec<(usize, f64)>]) -> Vec<usize> {
         let k = rhs.len();
         let nf = self.snode_of.len();
         self.mark.resize(self.snodes.len(), false);
@@ -504,6 +501,20 @@ impl SparseForward {
                 }
             }
         }
+        touched
+    }
+
+    /// `G[a][b] = b_a^T A^-1 b_b` (row-major, `k x k`, symmetric) for the
+    /// right-hand sides `rhs[a]`, each given by its non-zeros `(full DOF,
+    /// value)` (entries at constrained DOFs ignored), with the factor values
+    /// `l` of `P A P^T = L L^T`. The supernodes on the union of the columns'
+    /// paths are eliminated in order, each for every column whose part
+    /// there is not zero (skipping a zero part is exact), so a supernode's
+    /// values are read from memory once for all columns.
+    pub fn gram(&mut self, l: &[f64], rhs: &[Vec<(usize, f64)>]) -> Vec<f64> {
+        let k = rhs.len();
+        let nf = self.snode_of.len();
+        let touched = self.eliminate(l, rhs);
         // G = Y^T Y, Y dense over the touched supernodes' columns (in
         // order: one gemm; the upper triangle mirrored so G is exactly
         // symmetric); `x` is left zero for the next call.
@@ -528,5 +539,73 @@ impl SparseForward {
             }
         }
         g
+    }
+
+    /// `y = L^-1 P b` of each right-hand side in `rhs` (non-zeros `(full
+    /// DOF, value)`, entries at constrained DOFs ignored), each kept on the
+    /// supernodes of its own elimination-tree path: `b_a^T A^-1 b_b` is then
+    /// [`SparseColumn::dot`] of the two, so a caller whose factor outlives a
+    /// step can keep the columns and add new ones without solving the old
+    /// again. Eliminated together as in [`Self::gram`].
+    pub fn columns(&mut self, l: &[f64], rhs: &[Vec<(usize, f64)>]) -> Vec<SparseColumn> {
+        let nf = self.snode_of.len();
+        let touched = self.eliminate(l, rhs);
+        self.x
+            .chunks_exact_mut(nf)
+            .take(rhs.len())
+            .map(|xq| {
+                let mut y = SparseColumn::default();
+                for &s in &touched {
+                    let sn = &self.snodes[s];
+                    let part = &mut xq[sn.off..sn.off + sn.ncols];
+                    // Zero exactly where the path does not pass (eliminate
+                    // skips those parts).
+                    if part.iter().any(|&v| v != 0.0) {
+                        y.snodes.push(s as u32);
+                        y.starts.push(y.vals.len() as u32);
+                        y.vals.extend_from_slice(part);
+                        part.fill(0.0);
+                    }
+                }
+                y
+            })
+            .collect()
+    }
+}
+
+/// One forward-eliminated column `y = L^-1 P b` of
+/// [`SparseForward::columns`]: its parts on the supernodes of its path, in
+/// elimination order.
+#[derive(Debug, Clone, Default)]
+pub struct SparseColumn {
+    snodes: Vec<u32>,
+    starts: Vec<u32>,
+    vals: Vec<f64>,
+}
+
+impl SparseColumn {
+    /// `y_a . y_b = b_a^T A^-1 b_b`, over the supernodes both paths share
+    /// (in elimination order, each part summed in order: the same bits
+    /// whichever other columns were eliminated with either).
+    pub fn dot(&self, other: &Self) -> f64 {
+        let (mut i, mut j, mut sum) = (0, 0, 0.0);
+        while i < self.snodes.len() && j < other.snodes.len() {
+            match self.snodes[i].cmp(&other.snodes[j]) {
+                std::cmp::Ordering::Less => i += 1,
+                std::cmp::Ordering::Greater => j += 1,
+                std::cmp::Ordering::Equal => {
+                    let a = &self.vals[self.starts[i] as usize..self.end(i)];
+                    let b = &other.vals[other.starts[j] as usize..other.end(j)];
+                    sum += a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+                    i += 1;
+                    j += 1;
+                }
+            }
+        }
+        sum
+    }
+
+    fn end(&self, i: usize) -> usize {
+        self.starts.get(i + 1).map_or(self.vals.len(), |&e| e as usize)
     }
 }

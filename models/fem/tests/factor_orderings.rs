@@ -229,7 +229,29 @@ fn sparse_forward_gram_matches_full_solves() {
                 assert_eq!(g[a * k + c], g[c * k + a]);
             }
         }
+        // The same products from the kept columns (`forward_columns`, the
+        // needle's cache across steps), one column solved at a time as a
+        // new coupling point is: their dot products agree with the full
+        // solves to the same round-off.
+        let id = sys.factor_id().expect("factored");
+        let cols: Vec<_> = rhs
+            .iter()
+            .map(|b| {
+                let (got, mut y) = sys.forward_columns(std::slice::from_ref(b)).expect("supernodal");
+                assert_eq!(got, id, "one factor, one id");
+                y.pop().expect("one column")
+            })
+            .collect();
+        for a in 0..k {
+            for c in 0..k {
+                let (d, e) = (cols[a].dot(&cols[c]), g[a * k + c]);
+                // As above: two stable solves of one factor.
+                assert!((d - e).abs() <= 1e-13 * scale, "{ordering:?} y_{a}.y_{c} = {d} vs {e}");
+                assert_eq!(d, cols[c].dot(&cols[a]), "the dot product is symmetric");
+            }
+        }
         sys.forget_factorization();
         assert!(sys.gram(&rhs).is_none(), "no valid factor");
+        assert!(sys.forward_columns(&rhs).is_none() && sys.factor_id().is_none());
     }
 }

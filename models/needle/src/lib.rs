@@ -68,6 +68,7 @@
 
 pub mod coupling;
 pub mod factory;
+mod gram;
 pub mod lcp;
 pub mod model;
 pub mod pcg;

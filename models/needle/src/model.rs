@@ -6,6 +6,7 @@
 //! ([`LcpSolver`]).
 
 use crate::coupling::{Embedded, OnNeedle, frame, locate, locate_within, on_needle};
+use crate::gram::TissueGram;
 use crate::lcp::{self, Bounds, Solution, State};
 use crate::pcg::{self, Row};
 use crate::regions::BuiltLabels;
@@ -174,6 +175,8 @@ pub struct NeedleModel {
     /// (`TissueBody::tet_materials`: the body's first, then its regions');
     /// empty for a uniform one.
     material_cuts: Vec<f64>,
+    /// The tissue's share of `W` kept while its factor stays.
+    gram: TissueGram,
 }
 
 /// The remeshed variant's state (issue 18): the remesher over the tissue's
@@ -285,6 +288,7 @@ impl NeedleModel {
             dihedral,
             cut_of_tet: Vec::new(),
             material_cuts: Vec::new(),
+            gram: TissueGram::default(),
         }
         .pre_inserted()
     }
@@ -756,29 +760,37 @@ impl NeedleModel {
     }
 
     /// The Delassus matrix `W = J_n H^{-1} J_n^T + J_t A^{-1} J_t^T` in frame
-    /// components. The tissue's share by sparse forward solves with its
-    /// factor (each column is a unit force spread over one tet's four
-    /// nodes: `W_t = Y^T Y`, `Y = L^-1 P J_t^T`, [`FemModel::gram`]), or,
-    /// where the factor is simplicial, all its columns in one blocked full
-    /// solve; the needle's by one banded solve per point and axis.
+    /// components. The tissue's share in world axes by sparse forward
+    /// solves with its factor (each column a unit force spread over one
+    /// tet's four nodes: `Y = L^-1 P J_t^T`, `W_t = Y^T Y`), kept across
+    /// steps while the factor stays ([`TissueGram`]: only new points are
+    /// solved), then turned into each point's frame; where the factor is
+    /// simplicial, all its frame columns in one blocked full solve. The
+    /// needle's by one banded solve per point and axis.
     fn delassus(&mut self, geo: &[Geometry]) -> DMatrix<f64> {
         let m = geo.len();
         let (nf, nt) = (self.rod.free_dofs(), 3 * self.fem.node_masses().len());
-        // Column 3 i + d: the unit force along point i's frame axis d,
-        // on the tissue DOFs of its tet.
-        let columns: Vec<Vec<(usize, f64)>> = geo
-            .iter()
-            .flat_map(|gi| {
-                (0..3).map(move |d| {
-                    (0..4)
-                        .flat_map(|a| (0..3).map(move |c| (3 * gi.tissue[a] + c, gi.w[a] * gi.frame[d][c])))
-                        .collect()
-                })
-            })
-            .collect();
-        let mut w = match self.fem.gram(&columns) {
-            Some(g) => DMatrix::from_row_slice(3 * m, 3 * m, &g),
+        let stencils: Vec<([usize; 4], [f64; 4])> = geo.iter().map(|g| (g.tissue, g.w)).collect();
+        let mut w = match self.gram.world(&mut self.fem, &stencils) {
+            // W_t[3j + r, 3i + d] = f_j,r^T B_ji f_i,d for world blocks B.
+            Some(world) => DMatrix::from_fn(3 * m, 3 * m, |row, col| {
+                let (j, r, i, d) = (row / 3, row % 3, col / 3, col % 3);
+                let b = world.fixed_view::<3, 3>(3 * j, 3 * i);
+                geo[j].frame[r].dot(&(b * geo[i].frame[d]))
+            }),
             None => {
+                // Column 3 i + d: the unit force along point i's frame
+                // axis d, on the tissue DOFs of its tet.
+                let columns: Vec<Vec<(usize, f64)>> = geo
+                    .iter()
+                    .flat_map(|gi| {
+                        (0..3).map(move |d| {
+                            (0..4)
+                                .flat_map(|a| (0..3).map(move |c| (3 * gi.tissue[a] + c, gi.w[a] * gi.frame[d][c])))
+                                .collect()
+                        })
+                    })
+                    .collect();
                 let mut w = DMatrix::zeros(3 * m, 3 * m);
                 let mut yts = vec![0.0; nt * 3 * m];
                 for (col, entries) in columns.iter().enumerate() {
@@ -1270,6 +1282,16 @@ impl Model for NeedleModel {
             s.tets_updated as f64 / (s.all_steps.max(1) * self.tets.len().max(1)) as f64,
         );
         d.insert("tissue_factorizations".into(), s.factorizations as f64);
+        // Of the tissue's Delassus columns the Schur solver needed, the share
+        // kept from an earlier step with the same factor (the rest solved;
+        // absent where the factor is simplicial: every step solves in full).
+        let (solved, reused) = (self.gram.solved, self.gram.reused);
+        if solved > 0 {
+            d.insert(
+                "delassus_points_reused_fraction".into(),
+                reused as f64 / (solved + reused).max(1) as f64,
+            );
+        }
         d.insert("tip_lost".into(), s.tip_lost as f64);
         // Where the tip cuts, in the tissue's rest coordinates (m), and the
         // force that takes there (N): which layer of a layered body it is in.

@@ -49,9 +49,14 @@ fn run(scene: &Scene, settings: &[&str]) -> Trace {
 /// Insert 6 mm at `V` with viscous friction, hold, retract 4 mm: every
 /// friction state, viscous rows and the tip's cutting bound are exercised.
 fn scene() -> Scene {
+    scene_on([8, 4, 4])
+}
+
+/// [`scene`] on a block of `cells` lattice cells.
+fn scene_on(cells: [usize; 3]) -> Scene {
     let x1 = 7e-3;
     let feed = [(0.0, 0.0), (x1 / V, x1), (x1 / V + 0.1, x1), (x1 / V + 0.5, x1 - 4e-3)];
-    let mut s = common::scene(&feed, [8, 4, 4], 20.0, 0.05);
+    let mut s = common::scene(&feed, cells, 20.0, 0.05);
     s.needle.as_mut().expect("a needle scene").viscous_friction = 50.0;
     s
 }
@@ -112,4 +117,35 @@ fn a_cg_tolerance_without_the_cg_solver_is_refused() {
     assert!(err.to_string().contains("cg_tolerance"), "{err}");
     let f = Fidelity::parse_pairs(&["lcp_solver=cg".to_string(), "cg_tolerance=1e-6".to_string()]).unwrap();
     assert!(NeedleFactory.build(&scene(), &f).is_ok());
+}
+
+/// With a lazy Jacobian the tissue's factor stays for many steps and the
+/// Schur solver keeps the tissue's Delassus columns of earlier steps,
+/// solving only new points (the tip's new channel end): its steps still
+/// agree with the CG solver's, which builds nothing across steps, as
+/// closely as without the lazy Jacobian. A kept column of the wrong factor
+/// or point would show as a force difference of the size of the friction.
+#[test]
+fn kept_delassus_columns_agree_with_the_cg_solver() {
+    // A block fine enough that faer picks a supernodal factor (the
+    // default scene's is simplicial: no columns to keep).
+    let s = scene_on([12, 6, 6]);
+    let lazy = ["lazy_threshold=0.1"];
+    let schur = run(&s, &lazy);
+    let cg = run(&s, &["lazy_threshold=0.1", "lcp_solver=cg"]);
+    let peak = schur.push.iter().fold(0.0f64, |m, f| m.max(f.abs()));
+    let (df, dx, ds) = differences(&schur, &cg);
+    let reused = schur.diag["delassus_points_reused_fraction"];
+    eprintln!(
+        "lazy: force {df:.3e} N of {peak:.3e} N, tip {dx:.3e} m; columns reused {reused:.3}; {} factorizations in {} steps",
+        schur.diag["tissue_factorizations"],
+        schur.push.len()
+    );
+    // Most points' columns come from earlier steps (else this tests nothing).
+    assert!(reused > 0.5, "reused fraction {reused}");
+    assert!(schur.diag["tissue_factorizations"] < 0.5 * schur.push.len() as f64);
+    assert_eq!(ds, 0, "steps whose friction states differ");
+    // The same bounds as at the default (the CG's tolerance, 1e-8).
+    assert!(df <= 1e-4 * peak, "force differs by {df:.3e} N of {peak:.3e} N");
+    assert!(dx <= 1e-9, "tip differs by {dx:.3e} m");
 }

@@ -22,7 +22,7 @@
 
 use crate::element::UPPER;
 use crate::material::M3;
-use crate::supernodal::{SparseForward, SplitSolve};
+use crate::supernodal::{SparseColumn, SparseForward, SplitSolve};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{
@@ -269,7 +269,13 @@ struct CholState {
     /// [`System::gram`] (`None` before it, and for a simplicial factor):
     /// solves that never ask for one do not pay for it.
     sparse: Option<SparseForward>,
+    /// This numeric factorization's [`System::factor_id`].
+    id: u64,
 }
+
+/// Source of [`System::factor_id`]s: unique within the process, so a
+/// caller can tell a factor from every other, of any model.
+static NEXT_FACTOR_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
 
 impl System {
     /// Build the free-DOF pattern for the constrained-DOF mask `free`.
@@ -423,6 +429,25 @@ impl System {
         Some(c.sparse.as_mut()?.gram(&c.l, rhs))
     }
 
+    /// The columns `L^-1 P b` of sparse right-hand sides with the cached
+    /// supernodal factor ([`SparseForward::columns`]), with the factor's
+    /// [`Self::factor_id`]; `None` as for [`Self::gram`].
+    pub fn forward_columns(&mut self, rhs: &[Vec<(usize, f64)>]) -> Option<(u64, Vec<SparseColumn>)> {
+        let c = self.chol.as_mut().filter(|c| c.valid)?;
+        if c.sparse.is_none() {
+            c.sparse = SparseForward::new(&c.symbolic, &self.dofs, self.free.len());
+        }
+        let cols = c.sparse.as_mut()?.columns(&c.l, rhs);
+        Some((c.id, cols))
+    }
+
+    /// Identity of the valid numeric factorization (`None` without one):
+    /// a new one, of this system or any other, has a new id, so products
+    /// with a factor can be kept while the id stays.
+    pub fn factor_id(&self) -> Option<u64> {
+        self.chol.as_ref().filter(|c| c.valid).map(|c| c.id)
+    }
+
     /// Whether a valid numeric factorization is cached.
     pub fn has_factorization(&self) -> bool {
         self.chol.as_ref().is_some_and(|c| c.valid)
@@ -501,6 +526,7 @@ impl System {
                 rhs32: vec![0.0; self.dofs.len()],
                 split: SplitSolve::new(&symbolic, &self.dofs),
                 sparse: None,
+                id: 0,
                 symbolic,
             });
         }
@@ -519,6 +545,7 @@ impl System {
             )
             .map_err(|e| format!("matrix is not positive definite ({e:?})"))?;
         c.valid = true;
+        c.id = NEXT_FACTOR_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         c.set_single(self.single);
         self.factorizations += 1;
         Ok(())

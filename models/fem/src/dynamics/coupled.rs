@@ -7,6 +7,7 @@
 //! the Cholesky factor reused while no Jacobian block changed.
 
 use super::*;
+use crate::supernodal::SparseColumn;
 
 /// One linearized step of a [`FemModel`]: `A dx = r + f_c`, with
 /// `A = c_k K + c_m M` on the free DOFs and `r` the dynamic residual at the
@@ -142,6 +143,20 @@ impl FemModel {
     /// [`Self::solve_linear_many`]).
     pub fn gram(&mut self, rhs: &[Vec<(usize, f64)>]) -> Option<Vec<f64>> {
         self.sys.gram(rhs)
+    }
+
+    /// The columns `L^-1 P b` of sparse right-hand sides with the step's
+    /// factor, and the factor's id: `b_a^T A^-1 b_b` is the columns' dot
+    /// product, valid while [`Self::factor_id`] returns the same id;
+    /// `None` as for [`Self::gram`].
+    pub fn forward_columns(&mut self, rhs: &[Vec<(usize, f64)>]) -> Option<(u64, Vec<SparseColumn>)> {
+        self.sys.forward_columns(rhs)
+    }
+
+    /// Identity of the tissue matrix's current factorization (`None`
+    /// without one): unique in the process, new at every factorization.
+    pub fn factor_id(&self) -> Option<u64> {
+        self.sys.factor_id()
     }
 
     /// Whether DOF `d` (`3 * node + axis`) is free.
