@@ -561,7 +561,7 @@ impl SparseForward {
                     // Zero exactly where the path does not pass (eliminate
                     // skips those parts).
                     if part.iter().any(|&v| v != 0.0) {
-                        y.snodes.push(s as u32);
+                        y.offs.push(sn.off as u32);
                         y.starts.push(y.vals.len() as u32);
                         y.vals.extend_from_slice(part);
                         part.fill(0.0);
@@ -571,6 +571,74 @@ impl SparseForward {
             })
             .collect()
     }
+
+    /// The forward half of a full solve: `u = L^-1 P r` for a dense
+    /// full-DOF `r` (constrained entries ignored), in factor column order.
+    /// With [`SparseColumn::dot_dense`] a caller reads `b^T A^-1 r` off `u`
+    /// for its sparse `b`, and with [`Self::backward`] finishes the solve,
+    /// after subtracting columns if it likes: `A^-1 (r - B f)` in one
+    /// forward and one backward sweep, not two full solves.
+    pub fn forward(&self, l: &[f64], r: &[f64]) -> Vec<f64> {
+        let mut u = vec![0.0; self.snode_of.len()];
+        for (d, &col) in self.col_of.iter().enumerate() {
+            if col != usize::MAX {
+                u[col] = r[d];
+            }
+        }
+        let mut tmp = Vec::new();
+        for sn in &self.snodes {
+            let (c, p) = (sn.ncols, sn.pat.len());
+            let lv = faer::MatRef::from_column_major_slice(&l[sn.val..sn.val + (c + p) * c], c + p, c);
+            let xs = faer::MatMut::from_column_major_slice_mut(&mut u[sn.off..sn.off + c], c, 1);
+            faer::linalg::triangular_solve::solve_lower_triangular_in_place(lv.subrows(0, c), xs, faer::Par::Seq);
+            tmp.clear();
+            tmp.resize(p, 0.0);
+            faer::linalg::matmul::matmul(
+                faer::MatMut::from_column_major_slice_mut(&mut tmp, p, 1),
+                faer::Accum::Replace,
+                lv.subrows(c, p),
+                faer::MatRef::from_column_major_slice(&u[sn.off..sn.off + c], c, 1),
+                1.0,
+                faer::Par::Seq,
+            );
+            for (&r, &t) in sn.pat.iter().zip(&tmp) {
+                u[r as usize] -= t;
+            }
+        }
+        u
+    }
+
+    /// The backward half: `z = P^T L^-T u` on the free DOFs of the full
+    /// vector `z` (its constrained entries untouched); `u` (factor column
+    /// order, from [`Self::forward`]) is overwritten.
+    pub fn backward(&self, l: &[f64], u: &mut [f64], z: &mut [f64]) {
+        let mut tmp = Vec::new();
+        for sn in self.snodes.iter().rev() {
+            let (c, p) = (sn.ncols, sn.pat.len());
+            let lv = faer::MatRef::from_column_major_slice(&l[sn.val..sn.val + (c + p) * c], c + p, c);
+            tmp.clear();
+            tmp.extend(sn.pat.iter().map(|&r| u[r as usize]));
+            let mut xs = faer::MatMut::from_column_major_slice_mut(&mut u[sn.off..sn.off + c], c, 1);
+            faer::linalg::matmul::matmul(
+                xs.as_mut(),
+                faer::Accum::Add,
+                lv.subrows(c, p).transpose(),
+                faer::MatRef::from_column_major_slice(&tmp, p, 1),
+                -1.0,
+                faer::Par::Seq,
+            );
+            faer::linalg::triangular_solve::solve_upper_triangular_in_place(
+                lv.subrows(0, c).transpose(),
+                xs,
+                faer::Par::Seq,
+            );
+        }
+        for (d, &col) in self.col_of.iter().enumerate() {
+            if col != usize::MAX {
+                z[d] = u[col];
+            }
+        }
+    }
 }
 
 /// One forward-eliminated column `y = L^-1 P b` of
@@ -578,7 +646,9 @@ impl SparseForward {
 /// elimination order.
 #[derive(Debug, Clone, Default)]
 pub struct SparseColumn {
-    snodes: Vec<u32>,
+    /// Factor column of each part's first entry (one part per supernode
+    /// of the path, ascending).
+    offs: Vec<u32>,
     starts: Vec<u32>,
     vals: Vec<f64>,
 }
@@ -589,8 +659,8 @@ impl SparseColumn {
     /// whichever other columns were eliminated with either).
     pub fn dot(&self, other: &Self) -> f64 {
         let (mut i, mut j, mut sum) = (0, 0, 0.0);
-        while i < self.snodes.len() && j < other.snodes.len() {
-            match self.snodes[i].cmp(&other.snodes[j]) {
+        while i < self.offs.len() && j < other.offs.len() {
+            match self.offs[i].cmp(&other.offs[j]) {
                 std::cmp::Ordering::Less => i += 1,
                 std::cmp::Ordering::Greater => j += 1,
                 std::cmp::Ordering::Equal => {
@@ -603,6 +673,30 @@ impl SparseColumn {
             }
         }
         sum
+    }
+
+    /// `y . u` for a dense `u` in factor column order
+    /// ([`SparseForward::forward`]): `b^T A^-1 r`.
+    pub fn dot_dense(&self, u: &[f64]) -> f64 {
+        let mut sum = 0.0;
+        for (i, &off) in self.offs.iter().enumerate() {
+            let off = off as usize;
+            let a = &self.vals[self.starts[i] as usize..self.end(i)];
+            sum += a.iter().zip(&u[off..]).map(|(x, y)| x * y).sum::<f64>();
+        }
+        sum
+    }
+
+    /// `u -= alpha y` for a dense `u` in factor column order.
+    pub fn sub_from(&self, alpha: f64, u: &mut [f64]) {
+        for (i, &off) in self.offs.iter().enumerate() {
+            let off = off as usize;
+            let a = &self.vals[self.starts[i] as usize..self.end(i)];
+            u[off..off + a.len()]
+                .iter_mut()
+                .zip(a)
+                .for_each(|(x, y)| *x -= alpha * y);
+        }
     }
 
     fn end(&self, i: usize) -> usize {

@@ -30,6 +30,8 @@ pub(crate) struct TissueGram {
     cols: Vec<[SparseColumn; 3]>,
     /// `blocks[a][b]` (b <= a): the world-axes block `J_a A^-1 J_b^T`.
     blocks: Vec<Vec<Matrix3<f64>>>,
+    /// Slot of each point of the last [`Self::world`] call.
+    current: Vec<usize>,
     /// Points forward-solved and points whose columns were reused, over
     /// the run.
     pub solved: usize,
@@ -107,10 +109,21 @@ impl TissueGram {
         Some(w)
     }
 
-    /// Drop every slot not in `used`, keeping the others' order.
+    /// The columns `L^-1 P J_i^T` (world x, y, z) of point `i` of the last
+    /// [`Self::world`] call, valid with the factor that call used.
+    pub fn columns(&self, i: usize) -> &[SparseColumn; 3] {
+        &self.cols[self.current[i]]
+    }
+
+    /// Drop every slot not in `used` (the points of this call, which
+    /// [`Self::columns`] then finds), keeping the others' order.
     fn keep(&mut self, used: &[usize]) {
         let n = self.keys.len();
         let kept: Vec<usize> = (0..n).filter(|s| used.contains(s)).collect();
+        self.current = used
+            .iter()
+            .map(|s| kept.binary_search(s).expect("a used slot is kept"))
+            .collect();
         if kept.len() == n {
             return;
         }

@@ -448,6 +448,27 @@ impl System {
         self.chol.as_ref().filter(|c| c.valid).map(|c| c.id)
     }
 
+    /// The forward half of a solve with the cached supernodal factor,
+    /// `u = L^-1 P r` ([`SparseForward::forward`]), and the factor's
+    /// [`Self::factor_id`]; `None` as for [`Self::gram`].
+    pub fn forward_half(&mut self, r: &[f64]) -> Option<(u64, Vec<f64>)> {
+        let c = self.chol.as_mut().filter(|c| c.valid)?;
+        if c.sparse.is_none() {
+            c.sparse = SparseForward::new(&c.symbolic, &self.dofs, self.free.len());
+        }
+        let u = c.sparse.as_ref()?.forward(&c.l, r);
+        Some((c.id, u))
+    }
+
+    /// The backward half, `z = P^T L^-T u` on the free DOFs of `z`
+    /// ([`SparseForward::backward`]; `u` overwritten); `None` (and nothing
+    /// written) without a valid supernodal factor.
+    pub fn backward_half(&mut self, u: &mut [f64], z: &mut [f64]) -> Option<()> {
+        let c = self.chol.as_mut().filter(|c| c.valid)?;
+        c.sparse.as_ref()?.backward(&c.l, u, z);
+        Some(())
+    }
+
     /// Whether a valid numeric factorization is cached.
     pub fn has_factorization(&self) -> bool {
         self.chol.as_ref().is_some_and(|c| c.valid)

@@ -153,6 +153,21 @@ impl FemModel {
         self.sys.forward_columns(rhs)
     }
 
+    /// The forward half `u = L^-1 P r` of a solve with the step's factor
+    /// (factor column order) and the factor's id: `b^T A^-1 r` is
+    /// [`SparseColumn::dot_dense`] of `b`'s column with `u`, and
+    /// [`Self::backward_half`] finishes `A^-1 r`; `None` as for
+    /// [`Self::gram`].
+    pub fn forward_half(&mut self, r: &[f64]) -> Option<(u64, Vec<f64>)> {
+        self.sys.forward_half(r)
+    }
+
+    /// The backward half: `z = P^T L^-T u` on the free DOFs of `z` (`3 *
+    /// nodes` entries, the constrained ones untouched; `u` overwritten).
+    pub fn backward_half(&mut self, u: &mut [f64], z: &mut [f64]) -> Option<()> {
+        self.sys.backward_half(u, z)
+    }
+
     /// Identity of the tissue matrix's current factorization (`None`
     /// without one): unique in the process, new at every factorization.
     pub fn factor_id(&self) -> Option<u64> {

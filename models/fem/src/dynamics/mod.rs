@@ -802,10 +802,16 @@ impl FemModel {
             self.a[i] = u.a0[i] + d * u.c_a;
             self.v[i] = u.v0[i] + d * u.c_v;
         }
-        let dxv: Vec<Vec3> = (0..n)
-            .map(|i| Vec3::new(last_dx[3 * i], last_dx[3 * i + 1], last_dx[3 * i + 2]))
-            .collect();
-        let kdx = self.solid.k_times(&dxv);
+        // The driven nodes' reaction needs `K dx` (a product over every
+        // element): skipped where no node is driven.
+        let kdx = if self.driven.is_empty() {
+            Vec::new()
+        } else {
+            let dxv: Vec<Vec3> = (0..n)
+                .map(|i| Vec3::new(last_dx[3 * i], last_dx[3 * i + 1], last_dx[3 * i + 2]))
+                .collect();
+            self.solid.k_times(&dxv)
+        };
         self.hand_force = self
             .driven
             .iter()
