@@ -384,6 +384,9 @@ pub struct SparseForward {
     parent: Vec<usize>,
     /// Supernodes in faer's order, columns and pattern in factor numbering.
     snodes: Vec<Snode>,
+    /// Supernodes of bin 0, bin 1 and the top of [`Tree::cut`], each
+    /// ascending, for the two-way parallel full sweeps.
+    parts: [Vec<usize>; 3],
     /// Scratch: the columns being eliminated, and a mark per supernode.
     x: Vec<f64>,
     mark: Vec<bool>,
@@ -418,11 +421,16 @@ impl SparseForward {
             .iter()
             .map(|s| s.pat.first().map_or(usize::MAX, |&r| snode_of[r as usize]))
             .collect();
+        let mut parts: [Vec<usize>; 3] = Default::default();
+        for (s, &o) in Tree::new(sn).cut().iter().enumerate() {
+            parts[o as usize].push(s);
+        }
         Some(Self {
             col_of,
             snode_of,
             parent,
             snodes,
+            parts,
             x: Vec::new(),
             mark: Vec::new(),
         })
@@ -578,6 +586,12 @@ impl SparseForward {
     /// for its sparse `b`, and with [`Self::backward`] finishes the solve,
     /// after subtracting columns if it likes: `A^-1 (r - B f)` in one
     /// forward and one backward sweep, not two full solves.
+    ///
+    /// Two-way parallel as [`SplitSolve`] (the same cut of the tree, see
+    /// the module docs): each bin eliminates its subtrees into its own copy
+    /// of `u`, its updates of the top's rows summed from zero there; the
+    /// top's right-hand side is then `r_top + acc_0 + acc_1` (this order)
+    /// and the top is eliminated. The same bits on one or two threads.
     pub fn forward(&self, l: &[f64], r: &[f64]) -> Vec<f64> {
         let mut u = vec![0.0; self.snode_of.len()];
         for (d, &col) in self.col_of.iter().enumerate() {
@@ -585,53 +599,62 @@ impl SparseForward {
                 u[col] = r[d];
             }
         }
-        let mut tmp = Vec::new();
-        for sn in &self.snodes {
-            let (c, p) = (sn.ncols, sn.pat.len());
-            let lv = faer::MatRef::from_column_major_slice(&l[sn.val..sn.val + (c + p) * c], c + p, c);
-            let xs = faer::MatMut::from_column_major_slice_mut(&mut u[sn.off..sn.off + c], c, 1);
-            faer::linalg::triangular_solve::solve_lower_triangular_in_place(lv.subrows(0, c), xs, faer::Par::Seq);
-            tmp.clear();
-            tmp.resize(p, 0.0);
-            faer::linalg::matmul::matmul(
-                faer::MatMut::from_column_major_slice_mut(&mut tmp, p, 1),
-                faer::Accum::Replace,
-                lv.subrows(c, p),
-                faer::MatRef::from_column_major_slice(&u[sn.off..sn.off + c], c, 1),
-                1.0,
-                faer::Par::Seq,
-            );
-            for (&r, &t) in sn.pat.iter().zip(&tmp) {
-                u[r as usize] -= t;
+        let bin = |b: usize| {
+            let mut ub = vec![0.0; u.len()];
+            for &s in &self.parts[b] {
+                let sn = &self.snodes[s];
+                ub[sn.off..sn.off + sn.ncols].copy_from_slice(&u[sn.off..sn.off + sn.ncols]);
             }
+            let mut tmp = Vec::new();
+            for &s in &self.parts[b] {
+                forward_snode(l, &self.snodes[s], &mut ub, &mut tmp);
+            }
+            ub
+        };
+        let (u0, u1) = rayon::join(|| bin(0), || bin(1));
+        for (b, ub) in [&u0, &u1].into_iter().enumerate() {
+            for &s in &self.parts[b] {
+                let sn = &self.snodes[s];
+                u[sn.off..sn.off + sn.ncols].copy_from_slice(&ub[sn.off..sn.off + sn.ncols]);
+            }
+        }
+        for &s in &self.parts[2] {
+            let sn = &self.snodes[s];
+            for col in sn.off..sn.off + sn.ncols {
+                u[col] = (u[col] + u0[col]) + u1[col];
+            }
+        }
+        let mut tmp = Vec::new();
+        for &s in &self.parts[2] {
+            forward_snode(l, &self.snodes[s], &mut u, &mut tmp);
         }
         u
     }
 
     /// The backward half: `z = P^T L^-T u` on the free DOFs of the full
     /// vector `z` (its constrained entries untouched); `u` (factor column
-    /// order, from [`Self::forward`]) is overwritten.
+    /// order, from [`Self::forward`]) is overwritten. The top first, then
+    /// the two bins side by side, each reading the top's values.
     pub fn backward(&self, l: &[f64], u: &mut [f64], z: &mut [f64]) {
         let mut tmp = Vec::new();
-        for sn in self.snodes.iter().rev() {
-            let (c, p) = (sn.ncols, sn.pat.len());
-            let lv = faer::MatRef::from_column_major_slice(&l[sn.val..sn.val + (c + p) * c], c + p, c);
-            tmp.clear();
-            tmp.extend(sn.pat.iter().map(|&r| u[r as usize]));
-            let mut xs = faer::MatMut::from_column_major_slice_mut(&mut u[sn.off..sn.off + c], c, 1);
-            faer::linalg::matmul::matmul(
-                xs.as_mut(),
-                faer::Accum::Add,
-                lv.subrows(c, p).transpose(),
-                faer::MatRef::from_column_major_slice(&tmp, p, 1),
-                -1.0,
-                faer::Par::Seq,
-            );
-            faer::linalg::triangular_solve::solve_upper_triangular_in_place(
-                lv.subrows(0, c).transpose(),
-                xs,
-                faer::Par::Seq,
-            );
+        for &s in self.parts[2].iter().rev() {
+            backward_snode(l, &self.snodes[s], u, &mut tmp);
+        }
+        let shared: &[f64] = u;
+        let bin = |b: usize| {
+            let mut ub = shared.to_vec();
+            let mut tmp = Vec::new();
+            for &s in self.parts[b].iter().rev() {
+                backward_snode(l, &self.snodes[s], &mut ub, &mut tmp);
+            }
+            ub
+        };
+        let (u0, u1) = rayon::join(|| bin(0), || bin(1));
+        for (b, ub) in [&u0, &u1].into_iter().enumerate() {
+            for &s in &self.parts[b] {
+                let sn = &self.snodes[s];
+                u[sn.off..sn.off + sn.ncols].copy_from_slice(&ub[sn.off..sn.off + sn.ncols]);
+            }
         }
         for (d, &col) in self.col_of.iter().enumerate() {
             if col != usize::MAX {
@@ -639,6 +662,47 @@ impl SparseForward {
             }
         }
     }
+}
+
+/// Forward elimination of supernode `sn` in `u` (factor column order):
+/// `u_s = L_ss^-1 u_s`, `u_pat -= L_ps u_s` (faer's kernels, sequential).
+fn forward_snode(l: &[f64], sn: &Snode, u: &mut [f64], tmp: &mut Vec<f64>) {
+    let (c, p) = (sn.ncols, sn.pat.len());
+    let lv = faer::MatRef::from_column_major_slice(&l[sn.val..sn.val + (c + p) * c], c + p, c);
+    let xs = faer::MatMut::from_column_major_slice_mut(&mut u[sn.off..sn.off + c], c, 1);
+    faer::linalg::triangular_solve::solve_lower_triangular_in_place(lv.subrows(0, c), xs, faer::Par::Seq);
+    tmp.clear();
+    tmp.resize(p, 0.0);
+    faer::linalg::matmul::matmul(
+        faer::MatMut::from_column_major_slice_mut(tmp, p, 1),
+        faer::Accum::Replace,
+        lv.subrows(c, p),
+        faer::MatRef::from_column_major_slice(&u[sn.off..sn.off + c], c, 1),
+        1.0,
+        faer::Par::Seq,
+    );
+    for (&r, &t) in sn.pat.iter().zip(tmp.iter()) {
+        u[r as usize] -= t;
+    }
+}
+
+/// Back substitution of supernode `sn` in `u`: `u_s = L_ss^-T (u_s - L_ps^T
+/// u_pat)`.
+fn backward_snode(l: &[f64], sn: &Snode, u: &mut [f64], tmp: &mut Vec<f64>) {
+    let (c, p) = (sn.ncols, sn.pat.len());
+    let lv = faer::MatRef::from_column_major_slice(&l[sn.val..sn.val + (c + p) * c], c + p, c);
+    tmp.clear();
+    tmp.extend(sn.pat.iter().map(|&r| u[r as usize]));
+    let mut xs = faer::MatMut::from_column_major_slice_mut(&mut u[sn.off..sn.off + c], c, 1);
+    faer::linalg::matmul::matmul(
+        xs.as_mut(),
+        faer::Accum::Add,
+        lv.subrows(c, p).transpose(),
+        faer::MatRef::from_column_major_slice(tmp, p, 1),
+        -1.0,
+        faer::Par::Seq,
+    );
+    faer::linalg::triangular_solve::solve_upper_triangular_in_place(lv.subrows(0, c).transpose(), xs, faer::Par::Seq);
 }
 
 /// One forward-eliminated column `y = L^-1 P b` of

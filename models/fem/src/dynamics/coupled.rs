@@ -159,13 +159,16 @@ impl FemModel {
     /// [`Self::backward_half`] finishes `A^-1 r`; `None` as for
     /// [`Self::gram`].
     pub fn forward_half(&mut self, r: &[f64]) -> Option<(u64, Vec<f64>)> {
-        self.sys.forward_half(r)
+        // In the model's own pool (its threads, warm from the step).
+        let Self { solid, sys, .. } = self;
+        solid.install(|| sys.forward_half(r))
     }
 
     /// The backward half: `z = P^T L^-T u` on the free DOFs of `z` (`3 *
     /// nodes` entries, the constrained ones untouched; `u` overwritten).
     pub fn backward_half(&mut self, u: &mut [f64], z: &mut [f64]) -> Option<()> {
-        self.sys.backward_half(u, z)
+        let Self { solid, sys, .. } = self;
+        solid.install(|| sys.backward_half(u, z))
     }
 
     /// Identity of the tissue matrix's current factorization (`None`
