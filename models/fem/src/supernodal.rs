@@ -601,10 +601,7 @@ impl SparseForward {
         }
         let bin = |b: usize| {
             let mut ub = vec![0.0; u.len()];
-            for &s in &self.parts[b] {
-                let sn = &self.snodes[s];
-                ub[sn.off..sn.off + sn.ncols].copy_from_slice(&u[sn.off..sn.off + sn.ncols]);
-            }
+            self.copy_part(b, &u, &mut ub);
             let mut tmp = Vec::new();
             for &s in &self.parts[b] {
                 forward_snode(l, &self.snodes[s], &mut ub, &mut tmp);
@@ -612,12 +609,7 @@ impl SparseForward {
             ub
         };
         let (u0, u1) = rayon::join(|| bin(0), || bin(1));
-        for (b, ub) in [&u0, &u1].into_iter().enumerate() {
-            for &s in &self.parts[b] {
-                let sn = &self.snodes[s];
-                u[sn.off..sn.off + sn.ncols].copy_from_slice(&ub[sn.off..sn.off + sn.ncols]);
-            }
-        }
+        self.take_bins(&mut u, [&u0, &u1]);
         for &s in &self.parts[2] {
             let sn = &self.snodes[s];
             for col in sn.off..sn.off + sn.ncols {
@@ -629,6 +621,21 @@ impl SparseForward {
             forward_snode(l, &self.snodes[s], &mut u, &mut tmp);
         }
         u
+    }
+
+    /// Copy bin `b`'s own columns from `from` to `to`.
+    fn copy_part(&self, b: usize, from: &[f64], to: &mut [f64]) {
+        for &s in &self.parts[b] {
+            let sn = &self.snodes[s];
+            to[sn.off..sn.off + sn.ncols].copy_from_slice(&from[sn.off..sn.off + sn.ncols]);
+        }
+    }
+
+    /// Each bin's own columns from its copy into `u`.
+    fn take_bins(&self, u: &mut [f64], bins: [&[f64]; 2]) {
+        for (b, ub) in bins.into_iter().enumerate() {
+            self.copy_part(b, ub, u);
+        }
     }
 
     /// The backward half: `z = P^T L^-T u` on the free DOFs of the full
@@ -650,12 +657,7 @@ impl SparseForward {
             ub
         };
         let (u0, u1) = rayon::join(|| bin(0), || bin(1));
-        for (b, ub) in [&u0, &u1].into_iter().enumerate() {
-            for &s in &self.parts[b] {
-                let sn = &self.snodes[s];
-                u[sn.off..sn.off + sn.ncols].copy_from_slice(&ub[sn.off..sn.off + sn.ncols]);
-            }
-        }
+        self.take_bins(u, [&u0, &u1]);
         for (d, &col) in self.col_of.iter().enumerate() {
             if col != usize::MAX {
                 z[d] = u[col];
