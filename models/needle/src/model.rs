@@ -990,7 +990,11 @@ impl NeedleModel {
         }
         let sol = lcp::solve(&w, &g_free, bounds, states, TAU_CHECK, MAX_TRIALS);
         let mut rn: Vec<f64> = self.rod.linear_residual().iter().map(|g| -g).collect();
-        let mut rt = lin.residual().to_vec();
+        let mut rt = if half.is_none() {
+            lin.residual().to_vec()
+        } else {
+            vec![0.0; n_dofs]
+        };
         let mut clamp = Vec3::zeros();
         for (i, g) in geo.iter().enumerate() {
             let f = g.force(&sol.lambda[3 * i..3 * i + 3]);
@@ -1007,7 +1011,6 @@ impl NeedleModel {
         self.rod.solve_linear(&mut rn);
         match &mut half {
             Some(u) => {
-                rt = vec![0.0; n_dofs];
                 self.fem
                     .backward_half(u, &mut rt)
                     .expect("the factor of the forward half");

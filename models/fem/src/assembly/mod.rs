@@ -452,12 +452,25 @@ impl System {
     /// `u = L^-1 P r` ([`SparseForward::forward`]), and the factor's
     /// [`Self::factor_id`]; `None` as for [`Self::gram`].
     pub fn forward_half(&mut self, r: &[f64]) -> Option<(u64, Vec<f64>)> {
-        let c = self.chol.as_mut().filter(|c| c.valid)?;
+        if !self.has_supernodal_factor() {
+            return None;
+        }
+        let c = self.chol.as_ref()?;
+        let u = c.sparse.as_ref()?.forward(&c.l, r);
+        Some((c.id, u))
+    }
+
+    /// Whether a valid supernodal factor is cached (what [`Self::gram`],
+    /// [`Self::forward_columns`] and the two halves need); builds their
+    /// sparse solver on the first call.
+    pub fn has_supernodal_factor(&mut self) -> bool {
+        let Some(c) = self.chol.as_mut().filter(|c| c.valid) else {
+            return false;
+        };
         if c.sparse.is_none() {
             c.sparse = SparseForward::new(&c.symbolic, &self.dofs, self.free.len());
         }
-        let u = c.sparse.as_ref()?.forward(&c.l, r);
-        Some((c.id, u))
+        c.sparse.is_some()
     }
 
     /// The backward half, `z = P^T L^-T u` on the free DOFs of `z`

@@ -159,7 +159,12 @@ impl FemModel {
     /// [`Self::backward_half`] finishes `A^-1 r`; `None` as for
     /// [`Self::gram`].
     pub fn forward_half(&mut self, r: &[f64]) -> Option<(u64, Vec<f64>)> {
-        // In the model's own pool (its threads, warm from the step).
+        // In the model's own pool (its threads, warm from the step); not
+        // even entered without a supernodal factor (a simplicial one is
+        // small, the hand-over would cost more than the sweep).
+        if !self.sys.has_supernodal_factor() {
+            return None;
+        }
         let Self { solid, sys, .. } = self;
         solid.install(|| sys.forward_half(r))
     }
