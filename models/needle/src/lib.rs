@@ -23,7 +23,12 @@
 //!   Delassus matrix `W` (the tissue's share `Y^T Y` from sparse forward
 //!   solves `Y = L^-1 P J^T` along the factor's elimination-tree paths,
 //!   the needle's by one banded solve per point and axis), and every
-//!   trial is a small dense solve.
+//!   trial is a small dense solve. The tissue's columns `Y` stay while its
+//!   factor does (module `gram`: a lazy Jacobian keeps it for many steps, and
+//!   only new points are solved), and the tissue's own solve is one
+//!   forward sweep, from which the LCP reads the points' uncoupled motion
+//!   `Y^T L^-1 P r`, and one backward sweep once the constraint forces are
+//!   taken off (`FemModel::forward_half`, `backward_half`).
 //! * Or, with `lcp_solver = "cg"`, by the seed's solver: every trial a
 //!   projected Jacobi-preconditioned CG over the whole coupled system
 //!   ([`pcg`]), with no tissue factorization. The two agree to the CG's
