@@ -965,15 +965,20 @@ impl NeedleModel {
         // Delassus matrix, and the constraint forces are subtracted before
         // the backward half, `dx = P^T L^-T (u - Y f)`: one forward and one
         // backward sweep of the factor a step instead of two full solves.
-        let mut half = self.fem.forward_half(lin.residual()).map(|(_, u)| u);
+        // (Without coupling points a plain full solve: no forward half to
+        // throw away.)
+        let mut half = if geo.is_empty() {
+            None
+        } else {
+            self.fem.forward_half(lin.residual()).map(|(_, u)| u)
+        };
         let mut dz: Vec<f64> = self.rod.linear_residual().iter().map(|g| -g).collect();
         self.rod.solve_linear(&mut dz);
         let n_dofs = lin.residual().len();
         let mut dx = Vec::new();
-        if half.is_none() || geo.is_empty() {
+        if half.is_none() {
             dx = lin.residual().to_vec();
             self.fem.solve_linear(&mut dx);
-            half = None;
         }
         if geo.is_empty() {
             return (dz, dx, None);
