@@ -1,5 +1,6 @@
 //! Criterion benchmark of every gated workload (`benches/gate.toml`): wall
-//! time of `steps` steps from a freshly built model (build excluded), in the
+//! time of `steps` steps from a freshly built model after its `warmup`
+//! steps (build and warm-up excluded), in the
 //! group `workload`, and of each static solve (`static_solve = true`: the
 //! first step, which solves the whole load) in the group `static_solve`.
 //! For people: criterion's wall-clock numbers swing on shared machines and
@@ -34,10 +35,18 @@ fn bench(c: &mut Criterion) {
     for w in cfg.workload.iter().filter(|w| !w.static_solve) {
         g.bench_function(w.key(), |b| {
             b.iter_batched(
-                || build(w),
+                || {
+                    let (mut m, scene) = build(w);
+                    let dt = m.dt();
+                    for k in 0..w.warmup {
+                        m.step(dt, &scene.control.command_at((k + 1) as f64 * dt))
+                            .expect("warm-up step");
+                    }
+                    (m, scene)
+                },
                 |(mut m, scene)| {
                     let dt = m.dt();
-                    for k in 0..w.steps {
+                    for k in w.warmup..w.warmup + w.steps {
                         m.step(dt, &scene.control.command_at((k + 1) as f64 * dt))
                             .expect("step");
                     }

@@ -822,6 +822,7 @@ fn cmd_gate_workload(a: &GateWorkloadArgs) -> Result<(), Failure> {
         params: parse_overrides(&s.params)?.into_iter().collect(),
         fidelity: fidelity.pairs().into_iter().collect(),
         steps: a.steps,
+        warmup: 0,
         static_solve: false,
         gate: true,
     };

@@ -39,6 +39,13 @@ pub struct Workload {
     pub fidelity: BTreeMap<String, Setting>,
     /// Steps counted (the gate also counts twice as many).
     pub steps: usize,
+    /// Steps taken before those counted or timed (default 0): a workload
+    /// measured in a steady state (an instrument already pressing the
+    /// wall) rather than from its start. The gate counts at `warmup +
+    /// steps` and `warmup + 2 steps`; the criterion bench steps `warmup`
+    /// outside its timing.
+    #[serde(default)]
+    pub warmup: usize,
     /// One static solve: counted at 0 and `steps` (= 1) steps, the cost of
     /// the first step past the build (default `false`).
     #[serde(default)]
@@ -119,6 +126,13 @@ pub fn load_config(path: &Path) -> Result<GateConfig, UsageError> {
         if w.static_solve && w.steps != 1 {
             return Err(UsageError(format!(
                 "{}: static_solve workload {} must have steps = 1 (its first step is the whole solve)",
+                path.display(),
+                w.key()
+            )));
+        }
+        if w.static_solve && w.warmup != 0 {
+            return Err(UsageError(format!(
+                "{}: static_solve workload {} cannot have a warmup (its first step is the whole solve)",
                 path.display(),
                 w.key()
             )));
@@ -352,7 +366,7 @@ pub fn run_gate(
         let (lo, hi) = if w.static_solve {
             (0, w.steps)
         } else {
-            (w.steps, 2 * w.steps)
+            (w.warmup + w.steps, w.warmup + 2 * w.steps)
         };
         let a = count(exe, w, lo)?;
         let b = count(exe, w, hi)?;

@@ -198,3 +198,30 @@ fn a_runaway_staggered_wall_ends_the_run_as_diverged() {
         s.reason
     );
 }
+
+/// A pair passes `rod.k` to its rod and `tissue.k` to its tissue, each
+/// checked by that half's own declaration: a misspelt key or a choice its
+/// model lacks is refused naming it, and `surgbench list` shows the keys.
+#[test]
+fn a_pair_passes_each_half_its_own_settings() {
+    let sc = registry::scenario(SCENE).unwrap();
+    let inst = sc.instantiate(&params(sc, &[])).unwrap();
+    let f = registry::model("pbd-rod+fem").unwrap();
+    let names: Vec<&str> = f.fidelity_keys().iter().map(|k| k.name).collect();
+    assert!(
+        names.contains(&"rod.solver") && names.contains(&"tissue.lazy_threshold"),
+        "{names:?}"
+    );
+    let build = |pairs: &[&str]| {
+        let fid = Fidelity::parse_pairs(pairs).unwrap();
+        f.build(inst.scene(), &fid).map(|_| ())
+    };
+    build(&["segments=20", "rod.solver=direct", "tissue.lazy_threshold=0.1"]).unwrap();
+    let typo = build(&["segments=20", "rod.solvr=direct"]).unwrap_err().to_string();
+    assert!(typo.contains("rod.solvr"), "{typo}");
+    let choice = build(&["segments=20", "rod.solver=newton"]).unwrap_err().to_string();
+    assert!(choice.contains("rod.solver") && choice.contains("direct"), "{choice}");
+    // A key of the other half is not this half's.
+    let wrong_half = build(&["segments=20", "tissue.substeps=4"]).unwrap_err().to_string();
+    assert!(wrong_half.contains("tissue.substeps"), "{wrong_half}");
+}

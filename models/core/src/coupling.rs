@@ -142,7 +142,14 @@ pub struct PairFactory {
     rod: &'static dyn ModelFactory,
     tissue: &'static dyn ModelFactory,
     caps: OnceLock<&'static [Capability]>,
+    keys: OnceLock<&'static [FidelityKey]>,
 }
+
+/// Prefix of a pair's fidelity keys that go to its rod (`rod.solver`).
+pub const ROD_PREFIX: &str = "rod.";
+/// Prefix of a pair's fidelity keys that go to its tissue
+/// (`tissue.lazy_threshold`).
+pub const TISSUE_PREFIX: &str = "tissue.";
 
 impl PairFactory {
     /// The pair `id` (`rod+tissue`) of `rod` and `tissue`.
@@ -152,6 +159,7 @@ impl PairFactory {
             rod,
             tissue,
             caps: OnceLock::new(),
+            keys: OnceLock::new(),
         }
     }
 
@@ -184,19 +192,44 @@ impl PairFactory {
         s
     }
 
+    /// The pair's request split into each half's: the rod takes the
+    /// segments, the tissue the mesh level, both the time step; an extra
+    /// `rod.k` goes to the rod as `k`, `tissue.k` to the tissue as `k` (each
+    /// half's own key, checked by its model), the others stay the pair's.
     fn split_fidelity(f: &Fidelity) -> (Fidelity, Fidelity) {
+        let half = |prefix: &str| {
+            f.extras
+                .iter()
+                .filter_map(|(k, v)| k.strip_prefix(prefix).map(|k| (k.to_string(), v.clone())))
+                .collect()
+        };
         let rod = Fidelity {
             segments: f.segments,
             dt: f.dt,
+            extras: half(ROD_PREFIX),
             ..Default::default()
         };
         let tissue = Fidelity {
             mesh_level: f.mesh_level,
             dt: f.dt,
+            extras: half(TISSUE_PREFIX),
             ..Default::default()
         };
         (rod, tissue)
     }
+}
+
+/// `keys` of a half, each renamed `prefix` + its name and its doc prefixed
+/// with the half's model id, made once per pair (the names must live as
+/// long as the registry).
+fn prefixed(prefix: &str, model: &str, keys: &[FidelityKey]) -> Vec<FidelityKey> {
+    keys.iter()
+        .map(|k| FidelityKey {
+            name: Box::leak(format!("{prefix}{}", k.name).into_boxed_str()),
+            doc: Box::leak(format!("{model}: {}", k.doc).into_boxed_str()),
+            kind: k.kind,
+        })
+        .collect()
 }
 
 impl ModelFactory for PairFactory {
@@ -220,11 +253,19 @@ impl ModelFactory for PairFactory {
             Box::leak(c.into_boxed_slice())
         })
     }
+    /// The coupling's keys, then each half's own keys under its prefix
+    /// (`rod.solver`, `tissue.lazy_threshold`): a pair passes a setting to
+    /// the half it names, and that half's declaration checks it.
     fn fidelity_keys(&self) -> &'static [FidelityKey] {
-        KEYS
+        self.keys.get_or_init(|| {
+            let mut k = KEYS.to_vec();
+            k.extend(prefixed(ROD_PREFIX, self.rod.id(), self.rod.fidelity_keys()));
+            k.extend(prefixed(TISSUE_PREFIX, self.tissue.id(), self.tissue.fidelity_keys()));
+            Box::leak(k.into_boxed_slice())
+        })
     }
-    /// The rod's segments, the tissue's mesh level and the smaller of their
-    /// time steps.
+    /// The rod's segments, the tissue's mesh level, the smaller of their
+    /// time steps and each half's extras under its prefix.
     fn default_fidelity(&self, scene: &Scene) -> Fidelity {
         let r = self.rod.default_fidelity(&Self::rod_scene(scene));
         let t = self.tissue.default_fidelity(&Self::tissue_scene(scene));
@@ -232,12 +273,18 @@ impl ModelFactory for PairFactory {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),
         };
+        // Each half's own scene defaults under its prefix, so that a run's
+        // settings say what each half ran with.
+        let mut extras = std::collections::BTreeMap::new();
+        for (prefix, half) in [(ROD_PREFIX, &r), (TISSUE_PREFIX, &t)] {
+            extras.extend(half.extras.iter().map(|(k, v)| (format!("{prefix}{k}"), v.clone())));
+        }
         Fidelity {
             segments: r.segments,
             mesh_level: t.mesh_level,
             dt,
             iterations: None,
-            extras: Default::default(),
+            extras,
         }
     }
 

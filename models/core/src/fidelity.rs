@@ -184,7 +184,10 @@ impl Fidelity {
 
     /// Insert a model-specific extra under a well-formed key.
     fn set_extra(&mut self, key: &str, value: Setting) -> Result<(), FidelityError> {
-        if key.is_empty() || !key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+        // Words of letters, digits and `_`, joined by single dots (a pair's
+        // `rod.solver` names its half).
+        let word = |w: &str| !w.is_empty() && w.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+        if !key.split('.').all(word) {
             return Err(FidelityError(format!("bad fidelity key `{key}`")));
         }
         self.extras.insert(key.to_string(), value);

@@ -106,6 +106,13 @@ impl BoxHash {
         b[0] + b[1] * self.dims[0] + b[2] * self.dims[0] * self.dims[1]
     }
 
+    /// The box `(i, j, k)` of linear index `key` ([`Self::linear_index`]'s
+    /// inverse).
+    pub fn box_at(&self, key: usize) -> [usize; 3] {
+        let [nx, ny, _] = self.dims;
+        [key % nx, (key / nx) % ny, key / (nx * ny)]
+    }
+
     /// Bucket `((i u) xor (j v) xor (k w)) mod N`.
     pub fn hash(&self, b: [usize; 3]) -> usize {
         let [u, v, w] = HASH_PRIMES;

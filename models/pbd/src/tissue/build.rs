@@ -33,6 +33,7 @@ impl PbdTissue {
         let driven_edges = touching(&net.edges, &driven_mark);
         let driven_tets = touching(&net.tets, &driven_mark);
         let hash = local_hash(body, &set, &x, &net.tets)?;
+        let tets_around = tets_around(&net.tets, nn);
         let pool = thread_pool(set.threads)?;
         let xa = AtomicPositions::new(nn);
         for (i, p) in x.iter().enumerate() {
@@ -66,8 +67,9 @@ impl PbdTissue {
             driven_tets,
             gravity: scene.gravity,
             hash,
+            tets_around,
             active: ActiveSet {
-                key: usize::MAX - 1,
+                key: vec![usize::MAX - 1],
                 ..Default::default()
             },
             tool_tip: None,
@@ -97,12 +99,6 @@ impl PbdTissue {
 /// Reject a tissue body this model cannot build: sphere contact with local
 /// activation, no tets, out-of-range boundary nodes, non-finite drives.
 fn check_body(body: &TissueBody, set: &TissueSettings) -> Result<(), BuildError> {
-    if !body.contact_surface.is_empty() && set.hash_box > 0.0 {
-        return Err(Unsupported::new(
-            "pbd-tissue: local activation (hash_box > 0) follows the driven nodes, not a coupled instrument; surface forces need hash_box = 0",
-        )
-        .into());
-    }
     if body.indenter.is_some() && set.hash_box > 0.0 {
         return Err(Unsupported::new(
             "pbd-tissue: local activation (hash_box > 0) follows the driven nodes, not the sphere; sphere contact needs hash_box = 0",
@@ -241,7 +237,16 @@ fn inverse_masses(body: &TissueBody, mass: &[f64]) -> (Vec<f64>, Vec<bool>) {
     (w, driven_mark)
 }
 
-/// The local-activation hash when `hash_box > 0` (it needs driven nodes to follow).
+/// Number of tets around each of `nn` nodes.
+fn tets_around(tets: &[[u32; 4]], nn: usize) -> Vec<u32> {
+    let mut n = vec![0; nn];
+    tets.iter().flatten().for_each(|&i| n[i as usize] += 1);
+    n
+}
+
+/// The local-activation hash when `hash_box > 0` (it needs a tool to
+/// follow: driven nodes, or a coupled instrument's forces on the contact
+/// surface).
 fn local_hash(
     body: &TissueBody,
     set: &TissueSettings,
@@ -249,10 +254,10 @@ fn local_hash(
     tets: &[[u32; 4]],
 ) -> Result<Option<BoxHash>, BuildError> {
     if set.hash_box > 0.0 {
-        if body.driven_nodes.is_empty() {
+        if body.driven_nodes.is_empty() && body.contact_surface.is_empty() {
             return Err(BuildError::bad(
                 "hash_box",
-                "local activation follows the tool (the driven nodes); this scene has none",
+                "local activation follows the tool (driven nodes, or an instrument's forces on the contact surface); this scene has neither",
             ));
         }
         let tets_usize: Vec<[usize; 4]> = tets.iter().map(|t| t.map(|i| i as usize)).collect();

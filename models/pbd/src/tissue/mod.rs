@@ -69,11 +69,14 @@
 //! moved by 1e-4 relative when the order changed.
 //!
 //! **Local activation** ([`crate::BoxHash`], fidelity `hash_box` > 0): only the
-//! tets of the expanded box holding the tool tip are solved; particles of
-//! those tets in the span bands at the box's bottom and top faces (along z,
-//! the vessel-axis convention of tube scenes) are held, and everything
-//! outside stays where it is. The tool tip is the centroid of the driven
-//! nodes unless set with [`PbdTissue::set_tool_tip`].
+//! tets of the active expanded boxes are solved. The active boxes are the
+//! one holding the tool tip (the centroid of the driven nodes unless set
+//! with [`PbdTissue::set_tool_tip`]) or, with a coupled instrument (surface
+//! forces), every box holding a loaded contact-surface node. A node moves
+//! if every tet around it is active; the nodes where the active tets meet
+//! the others are held, and everything outside stays where it is (a node
+//! the region leaves stops). The region is the boxes' in 3D, no axis
+//! privileged, so it follows a tool along any vessel.
 //!
 //! Units are SI throughout.
 
@@ -167,8 +170,9 @@ impl TissueSettings {
 /// What is solved this step: all constraints, or those of the active box.
 #[derive(Debug, Clone, Default)]
 struct ActiveSet {
-    /// Box linear index (`usize::MAX` = whole mesh).
-    key: usize,
+    /// Linear indices of the active boxes, sorted (`[usize::MAX]`: the
+    /// whole mesh; empty: nothing loaded, nothing moves).
+    key: Vec<usize>,
     edges: Vec<u32>,
     tets: Vec<u32>,
     /// Nodes that move (free and active).
@@ -404,6 +408,9 @@ pub struct PbdTissue {
     driven_tets: Vec<u32>,
     gravity: Vec3,
     hash: Option<BoxHash>,
+    /// Tets around each node (local activation moves a node only if all
+    /// of them are active).
+    tets_around: Vec<u32>,
     active: ActiveSet,
     /// Constraint storage order and blocks ([`crate::color`]).
     part: Partition,

@@ -4,21 +4,46 @@
 
 use super::*;
 use crate::ghost::{GhostSurface, project_particle_triangle};
+use crate::hash::BoxHash;
 use surgbench_core::Vec3;
 use surgbench_core::mesh::{tet_volume_gradients, tet_volume_of as tet_volume};
 
 impl PbdTissue {
-    /// Recompute the active set if the tool moved to another box.
+    /// The boxes to activate this step, as sorted linear indices: the box
+    /// holding the tool tip for a driven tool; for a coupled instrument
+    /// (surface forces), every box holding a contact-surface node that
+    /// carries a force, by its rest position (the grid partitions the rest
+    /// mesh; a node on a box face does not flip between boxes as it moves).
+    fn active_boxes(&self, hash: &BoxHash) -> Vec<usize> {
+        let mut keys: Vec<usize> = if self.surface.is_empty() {
+            vec![hash.linear_index(hash.box_of(&self.tool_tip()))]
+        } else {
+            self.surface
+                .iter()
+                .filter(|&&i| self.external[i] != Vec3::zeros())
+                .map(|&i| hash.linear_index(hash.box_of(&self.rest[i])))
+                .collect()
+        };
+        keys.sort_unstable();
+        keys.dedup();
+        keys
+    }
+
+    /// Recompute the active set if the boxes to activate changed: the tets
+    /// of every active (expanded) box are solved; a node moves if every tet
+    /// around it is active, and the nodes where the active tets meet the
+    /// inactive ones are held where they are, the boundary of the local
+    /// problem (no axis is privileged: the region follows the boxes in 3D).
     pub(super) fn update_active(&mut self) {
         let nn = self.x.len();
         let Some(hash) = &self.hash else {
-            if self.active.key != usize::MAX {
+            if self.active.key != [usize::MAX] {
                 let edges: Vec<u32> = (0..self.edges.len() as u32).collect();
                 let tets: Vec<u32> = (0..self.tets.len() as u32)
                     .filter(|&t| self.tet_alpha[t as usize].is_finite())
                     .collect();
                 self.active = ActiveSet {
-                    key: usize::MAX,
+                    key: vec![usize::MAX],
                     edge_split: split_by_blocks(&edges, &self.part.edge_start),
                     tet_split: split_by_blocks(&tets, &self.part.tet_start),
                     edges,
@@ -31,40 +56,49 @@ impl PbdTissue {
             }
             return;
         };
-        let b = hash.box_of(&self.tool_tip());
-        let key = hash.linear_index(b);
+        let key = self.active_boxes(hash);
         if key == self.active.key {
             return;
         }
-        let (lo, hi) = hash.core_bounds(b);
-        let tets_in = hash.tets(b);
         let mut edge_on = vec![false; self.edges.len()];
         let mut tet_on = vec![false; self.tets.len()];
-        let mut node_on = vec![false; nn];
+        // Active tets around each node, against all tets around it.
+        let mut around = vec![0u32; nn];
         let mut edges = Vec::new();
         let mut tets = Vec::new();
-        for &t in tets_in {
-            tet_on[t as usize] = true;
-            if self.tet_alpha[t as usize].is_finite() {
-                tets.push(t);
-            }
-            for &e in &self.tet_edges[t as usize] {
-                if !edge_on[e as usize] {
-                    edge_on[e as usize] = true;
-                    edges.push(e);
+        for &k in &key {
+            for &t in hash.tets(hash.box_at(k)) {
+                if tet_on[t as usize] {
+                    continue;
                 }
-            }
-            for &i in &self.tets[t as usize] {
-                node_on[i as usize] = true;
+                tet_on[t as usize] = true;
+                if self.tet_alpha[t as usize].is_finite() {
+                    tets.push(t);
+                }
+                for &e in &self.tet_edges[t as usize] {
+                    if !edge_on[e as usize] {
+                        edge_on[e as usize] = true;
+                        edges.push(e);
+                    }
+                }
+                for &i in &self.tets[t as usize] {
+                    around[i as usize] += 1;
+                }
             }
         }
         let mut w = vec![0.0; nn];
         let mut nodes = Vec::new();
         for i in 0..nn {
-            let z = self.rest[i].z;
-            if node_on[i] && self.w[i] > 0.0 && z >= lo.z && z <= hi.z {
+            if around[i] > 0 && around[i] == self.tets_around[i] && self.w[i] > 0.0 {
                 w[i] = self.w[i];
                 nodes.push(i as u32);
+            }
+        }
+        // A node the region leaves stops where it is: it is held, and
+        // starts from rest should the region come back to it.
+        for &i in &self.active.nodes {
+            if w[i as usize] == 0.0 {
+                self.v[i as usize] = Vec3::zeros();
             }
         }
         // Storage order, so each block's share is contiguous.
