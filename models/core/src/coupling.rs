@@ -732,7 +732,8 @@ impl Model for PairModel {
         None
     }
 
-    /// Sweeps per step, the force balance, lost contacts and the wall fit.
+    /// Sweeps per step, the force balance, lost contacts and the wall fit;
+    /// then each half's own diagnostics as `rod.k` and `tissue.k`.
     fn diagnostics(&self) -> BTreeMap<String, f64> {
         let s = &self.stats;
         let mut d = BTreeMap::new();
@@ -741,6 +742,13 @@ impl Model for PairModel {
         d.insert("force_imbalance_n".into(), s.max_imbalance);
         d.insert("lost_contacts".into(), s.lost_contacts as f64);
         d.insert("wall_fit_error_m".into(), s.max_fit_error);
+        // Each half's own, under its prefix.
+        for (prefix, half) in [
+            (ROD_PREFIX, self.rod.diagnostics()),
+            (TISSUE_PREFIX, self.tissue.diagnostics()),
+        ] {
+            d.extend(half.into_iter().map(|(k, v)| (format!("{prefix}{k}"), v)));
+        }
         d
     }
 }

@@ -68,6 +68,9 @@ impl PbdTissue {
             gravity: scene.gravity,
             hash,
             tets_around,
+            activations: 0,
+            active_tets_sum: 0.0,
+            active_samples: 0,
             active: ActiveSet {
                 key: vec![usize::MAX - 1],
                 ..Default::default()

@@ -411,6 +411,12 @@ pub struct PbdTissue {
     /// Tets around each node (local activation moves a node only if all
     /// of them are active).
     tets_around: Vec<u32>,
+    /// Local activation: times the active set was rebuilt (the boxes
+    /// changed), and active tets summed over substeps with the count of
+    /// substeps, for the mean active fraction.
+    activations: usize,
+    active_tets_sum: f64,
+    active_samples: usize,
     active: ActiveSet,
     /// Constraint storage order and blocks ([`crate::color`]).
     part: Partition,
@@ -647,6 +653,8 @@ impl Model for PbdTissue {
             if self.hash.is_some() {
                 self.cur_ins = ins;
                 self.update_active();
+                self.active_tets_sum += self.active.tets.len() as f64;
+                self.active_samples += 1;
             }
             self.substep(h, ins);
         }
@@ -723,6 +731,19 @@ impl Model for PbdTissue {
     /// `static_rel_residual` and `static_converged` (1 or 0) certify the solve.
     fn diagnostics(&self) -> std::collections::BTreeMap<String, f64> {
         let mut d = std::collections::BTreeMap::new();
+        if self.hash.is_some() {
+            d.insert("hash_activations".into(), self.activations as f64);
+            let all = self.tet_alpha.iter().filter(|a| a.is_finite()).count().max(1) as f64;
+            d.insert(
+                "hash_active_tets_fraction_mean".into(),
+                self.active_tets_sum / self.active_samples.max(1) as f64 / all,
+            );
+        }
+        // The static reference is for a driven tool's hand force; a coupled
+        // wall has none.
+        if self.driven.is_empty() {
+            return d;
+        }
         let Ok(s) = self.static_equilibrium(&StaticParams::default()) else {
             return d;
         };

@@ -60,6 +60,7 @@ impl PbdTissue {
         if key == self.active.key {
             return;
         }
+        self.activations += 1;
         let mut edge_on = vec![false; self.edges.len()];
         let mut tet_on = vec![false; self.tets.len()];
         // Active tets around each node, against all tets around it.
