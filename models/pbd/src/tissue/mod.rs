@@ -739,9 +739,9 @@ impl Model for PbdTissue {
                 self.active_tets_sum / self.active_samples.max(1) as f64 / all,
             );
         }
-        // The static reference is for a driven tool's hand force; a coupled
-        // wall has none.
-        if self.driven.is_empty() {
+        // The static equilibrium holds the fixed and driven nodes and knows
+        // no surface forces: a coupled wall has no static reference.
+        if !self.surface.is_empty() {
             return d;
         }
         let Ok(s) = self.static_equilibrium(&StaticParams::default()) else {
